@@ -1,0 +1,236 @@
+// One declaration per stage drives its YAML keys, defaults, validation and
+// `locforge plugins describe` output.
+//
+//   struct SiftOptions {
+//     int max_keypoints = 8000;   // Keypoints kept per image, best first.
+//     bool root_sift = true;      // Hellinger-normalise descriptors.
+//     static void Declare(locforge::ParamSchema<SiftOptions>& s) {
+//       s.Add("max_keypoints", &SiftOptions::max_keypoints, "Keypoints kept per image").Min(1);
+//       s.Add("root_sift", &SiftOptions::root_sift, "Hellinger-normalise descriptors");
+//     }
+//     bool Check(std::string* why) const;  // optional cross-field validation
+//   };
+//
+// Defaults are read off a default-constructed Options, so the in-class
+// initialisers are the single source of truth.
+#ifndef LOCFORGE_PARAMS_H_
+#define LOCFORGE_PARAMS_H_
+
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "locforge/abi.h"
+#include "locforge/error.h"
+
+namespace locforge {
+
+// The C++ form of one LfParamSpec.
+struct ParamDecl {
+  std::string name;
+  LfParamType type = LF_PARAM_STRING;
+  uint32_t flags = 0;
+  std::string default_value;  // canonical; empty + LF_PARAM_REQUIRED when required
+  std::string doc;
+  bool has_min = false, has_max = false;
+  double min_value = 0, max_value = 0;
+  std::vector<std::string> choices;
+
+  bool required() const { return (flags & LF_PARAM_REQUIRED) != 0; }
+};
+
+const char* ParamTypeName(LfParamType type);
+
+// Canonical string forms (the ABI's wire format, also used for cache keys).
+std::string FormatBool(bool v);
+std::string FormatInt(int64_t v);
+std::string FormatDouble(double v);
+std::string JoinList(const std::vector<std::string>& items);
+std::vector<std::string> SplitList(const std::string& canonical);
+
+// Strict parsers: the whole string must be consumed. Return false on error.
+bool ParseBool(const std::string& s, bool* v);
+bool ParseInt(const std::string& s, int64_t* v);
+bool ParseDouble(const std::string& s, double* v);
+
+// Checks a canonical value against its declaration (type, range, choices).
+// Returns an empty string when valid, else the reason.
+std::string ValidateParamValue(const ParamDecl& decl, const std::string& canonical);
+
+// Resolves given values against declarations: unknown names are refused (with
+// a "did you mean" hint), missing ones take their default, each is validated.
+// Throws ParamError naming the parameter.
+std::map<std::string, std::string> ResolveParams(
+    const std::vector<ParamDecl>& decls,
+    const std::vector<std::pair<std::string, std::string>>& given);
+
+// Closest candidate by edit distance, or "" when none is close.
+std::string DidYouMean(const std::string& word, const std::vector<std::string>& candidates);
+
+namespace internal {
+template <typename T> struct ParamTraits;
+template <> struct ParamTraits<bool> {
+  static constexpr LfParamType kType = LF_PARAM_BOOL;
+  static std::string Format(bool v) { return FormatBool(v); }
+  static bool Parse(const std::string& s, bool* v) { return ParseBool(s, v); }
+};
+template <> struct ParamTraits<double> {
+  static constexpr LfParamType kType = LF_PARAM_DOUBLE;
+  static std::string Format(double v) { return FormatDouble(v); }
+  static bool Parse(const std::string& s, double* v) { return ParseDouble(s, v); }
+};
+template <> struct ParamTraits<float> {
+  static constexpr LfParamType kType = LF_PARAM_DOUBLE;
+  static std::string Format(float v) { return FormatDouble(v); }
+  static bool Parse(const std::string& s, float* v) {
+    double d;
+    if (!ParseDouble(s, &d)) return false;
+    *v = static_cast<float>(d);
+    return true;
+  }
+};
+template <> struct ParamTraits<std::string> {
+  static constexpr LfParamType kType = LF_PARAM_STRING;
+  static std::string Format(const std::string& v) { return v; }
+  static bool Parse(const std::string& s, std::string* v) { *v = s; return true; }
+};
+template <typename I>
+struct IntParamTraits {
+  static constexpr LfParamType kType = LF_PARAM_INT;
+  static std::string Format(I v) { return FormatInt(static_cast<int64_t>(v)); }
+  static bool Parse(const std::string& s, I* v) {
+    int64_t x;
+    if (!ParseInt(s, &x)) return false;
+    if (x < static_cast<int64_t>(std::numeric_limits<I>::min()) ||
+        static_cast<uint64_t>(x) > static_cast<uint64_t>(std::numeric_limits<I>::max()))
+      return false;
+    *v = static_cast<I>(x);
+    return true;
+  }
+};
+template <> struct ParamTraits<int> : IntParamTraits<int> {};
+template <> struct ParamTraits<int64_t> : IntParamTraits<int64_t> {};
+template <> struct ParamTraits<uint32_t> : IntParamTraits<uint32_t> {};
+template <typename E>
+struct ParamTraits<std::vector<E>> {
+  static constexpr LfParamType kType =
+      ParamTraits<E>::kType == LF_PARAM_INT      ? LF_PARAM_INT_LIST
+      : ParamTraits<E>::kType == LF_PARAM_DOUBLE ? LF_PARAM_DOUBLE_LIST
+                                                 : LF_PARAM_STRING_LIST;
+  static std::string Format(const std::vector<E>& v) {
+    std::vector<std::string> items;
+    for (const auto& e : v) items.push_back(ParamTraits<E>::Format(e));
+    return JoinList(items);
+  }
+  static bool Parse(const std::string& s, std::vector<E>* v) {
+    v->clear();
+    for (const auto& item : SplitList(s)) {
+      E e{};
+      if (!ParamTraits<E>::Parse(item, &e)) return false;
+      v->push_back(e);
+    }
+    return true;
+  }
+};
+
+template <typename O, typename = void>
+struct HasCheck : std::false_type {};
+template <typename O>
+struct HasCheck<O, std::void_t<decltype(std::declval<const O&>().Check(
+                       static_cast<std::string*>(nullptr)))>> : std::true_type {};
+}  // namespace internal
+
+// Fluent handle on the declaration being added.
+class ParamBuilder {
+ public:
+  explicit ParamBuilder(ParamDecl* decl) : decl_(decl) {}
+  ParamBuilder& Min(double v) { decl_->has_min = true; decl_->min_value = v; return *this; }
+  ParamBuilder& Max(double v) { decl_->has_max = true; decl_->max_value = v; return *this; }
+  ParamBuilder& Range(double lo, double hi) { return Min(lo).Max(hi); }
+  // The graph must give a value; the in-class default is ignored.
+  ParamBuilder& Required() {
+    decl_->flags |= LF_PARAM_REQUIRED;
+    decl_->default_value.clear();
+    return *this;
+  }
+  // A string naming a file or folder (its content stamp enters cache keys).
+  ParamBuilder& Path() { decl_->type = LF_PARAM_PATH; return *this; }
+  // A string restricted to these values.
+  ParamBuilder& Choices(std::vector<std::string> choices) {
+    decl_->type = LF_PARAM_ENUM;
+    decl_->choices = std::move(choices);
+    return *this;
+  }
+  // Does not change results (threads, verbosity): left out of cache keys.
+  ParamBuilder& NoCacheKey() { decl_->flags |= LF_PARAM_NO_CACHE_KEY; return *this; }
+
+ private:
+  ParamDecl* decl_;
+};
+
+template <typename Options>
+class ParamSchema {
+ public:
+  ParamSchema() { Options::Declare(*this); }
+
+  template <typename T>
+  ParamBuilder Add(const char* name, T Options::*field, const char* doc) {
+    using Traits = internal::ParamTraits<T>;
+    auto entry = std::make_unique<Entry>();
+    entry->decl.name = name;
+    entry->decl.type = Traits::kType;
+    entry->decl.doc = doc;
+    entry->decl.default_value = Traits::Format(Options{}.*field);
+    entry->parse = [field](Options& o, const std::string& s) {
+      return Traits::Parse(s, &(o.*field));
+    };
+    entries_.push_back(std::move(entry));
+    return ParamBuilder(&entries_.back()->decl);
+  }
+
+  std::vector<ParamDecl> Decls() const {
+    std::vector<ParamDecl> out;
+    for (const auto& e : entries_) out.push_back(e->decl);
+    return out;
+  }
+
+  // Resolves, validates and parses the given values into Options, then runs
+  // Options::Check() when it exists. Throws ParamError with the reason.
+  Options Parse(const std::vector<std::pair<std::string, std::string>>& given) const {
+    const auto resolved = ResolveParams(Decls(), given);
+    Options o{};
+    for (const auto& e : entries_) {
+      const std::string& value = resolved.at(e->decl.name);
+      if (!e->parse(o, value))
+        throw ParamError("parameter '" + e->decl.name + "': cannot parse '" + value + "' as " +
+                         ParamTypeName(e->decl.type));
+    }
+    if constexpr (internal::HasCheck<Options>::value) {
+      std::string why;
+      if (!o.Check(&why)) throw ParamError(why.empty() ? "invalid parameters" : why);
+    }
+    return o;
+  }
+
+ private:
+  struct Entry {
+    ParamDecl decl;
+    std::function<bool(Options&, const std::string&)> parse;
+  };
+  std::vector<std::unique_ptr<Entry>> entries_;
+};
+
+// Options of a stage without parameters.
+struct NoOptions {
+  static void Declare(ParamSchema<NoOptions>&) {}
+};
+
+}  // namespace locforge
+
+#endif  // LOCFORGE_PARAMS_H_

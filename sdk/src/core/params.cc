@@ -1,0 +1,194 @@
+#include "locforge/params.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <set>
+
+namespace locforge {
+
+const char* ParamTypeName(LfParamType type) {
+  switch (type) {
+    case LF_PARAM_BOOL: return "bool";
+    case LF_PARAM_INT: return "int";
+    case LF_PARAM_DOUBLE: return "double";
+    case LF_PARAM_STRING: return "string";
+    case LF_PARAM_PATH: return "path";
+    case LF_PARAM_ENUM: return "enum";
+    case LF_PARAM_INT_LIST: return "int list";
+    case LF_PARAM_DOUBLE_LIST: return "double list";
+    case LF_PARAM_STRING_LIST: return "string list";
+  }
+  return "unknown";
+}
+
+std::string FormatBool(bool v) { return v ? "true" : "false"; }
+std::string FormatInt(int64_t v) { return std::to_string(v); }
+
+std::string FormatDouble(double v) {
+  // Shortest form that reads back to the same double, so "0.1" stays "0.1".
+  char buf[64];
+  for (int precision = 1; precision <= 17; ++precision) {
+    std::snprintf(buf, sizeof(buf), "%.*g", precision, v);
+    if (std::strtod(buf, nullptr) == v) break;
+  }
+  return buf;
+}
+
+std::string JoinList(const std::vector<std::string>& items) {
+  std::string out;
+  for (size_t i = 0; i < items.size(); ++i) {
+    if (i) out += LF_LIST_SEPARATOR;
+    out += items[i];
+  }
+  return out;
+}
+
+std::vector<std::string> SplitList(const std::string& canonical) {
+  std::vector<std::string> out;
+  if (canonical.empty()) return out;
+  size_t start = 0;
+  while (true) {
+    const size_t pos = canonical.find(LF_LIST_SEPARATOR, start);
+    out.push_back(canonical.substr(start, pos - start));
+    if (pos == std::string::npos) break;
+    start = pos + 1;
+  }
+  return out;
+}
+
+bool ParseBool(const std::string& s, bool* v) {
+  static const std::set<std::string> kTrue = {"true", "True", "TRUE", "yes", "on", "1"};
+  static const std::set<std::string> kFalse = {"false", "False", "FALSE", "no", "off", "0"};
+  if (kTrue.count(s)) { *v = true; return true; }
+  if (kFalse.count(s)) { *v = false; return true; }
+  return false;
+}
+
+bool ParseInt(const std::string& s, int64_t* v) {
+  if (s.empty()) return false;
+  errno = 0;
+  char* end = nullptr;
+  const long long x = std::strtoll(s.c_str(), &end, 10);
+  if (errno != 0 || end != s.c_str() + s.size()) return false;
+  *v = x;
+  return true;
+}
+
+bool ParseDouble(const std::string& s, double* v) {
+  if (s.empty()) return false;
+  errno = 0;
+  char* end = nullptr;
+  const double x = std::strtod(s.c_str(), &end);
+  if (errno == ERANGE || end != s.c_str() + s.size() || std::isnan(x)) return false;
+  *v = x;
+  return true;
+}
+
+namespace {
+
+std::string RangeText(const ParamDecl& d) {
+  std::string lo = d.has_min ? FormatDouble(d.min_value) : "-inf";
+  std::string hi = d.has_max ? FormatDouble(d.max_value) : "+inf";
+  return "[" + lo + ", " + hi + "]";
+}
+
+std::string CheckNumber(const ParamDecl& d, const std::string& s, bool integer) {
+  double x = 0;
+  if (integer) {
+    int64_t i;
+    if (!ParseInt(s, &i)) return "expected an integer, got '" + s + "'";
+    x = static_cast<double>(i);
+  } else if (!ParseDouble(s, &x)) {
+    return "expected a number, got '" + s + "'";
+  }
+  if ((d.has_min && x < d.min_value) || (d.has_max && x > d.max_value))
+    return "value " + s + " is out of range " + RangeText(d);
+  return "";
+}
+
+}  // namespace
+
+std::string ValidateParamValue(const ParamDecl& d, const std::string& value) {
+  switch (d.type) {
+    case LF_PARAM_BOOL: {
+      bool b;
+      return ParseBool(value, &b) ? "" : "expected true or false, got '" + value + "'";
+    }
+    case LF_PARAM_INT: return CheckNumber(d, value, true);
+    case LF_PARAM_DOUBLE: return CheckNumber(d, value, false);
+    case LF_PARAM_STRING: return "";
+    case LF_PARAM_PATH: return value.empty() ? "expected a path, got an empty string" : "";
+    case LF_PARAM_ENUM: {
+      if (std::find(d.choices.begin(), d.choices.end(), value) != d.choices.end()) return "";
+      std::string all;
+      for (const auto& c : d.choices) all += (all.empty() ? "" : ", ") + c;
+      std::string hint = DidYouMean(value, d.choices);
+      return "'" + value + "' is not one of {" + all + "}" +
+             (hint.empty() ? "" : " (did you mean '" + hint + "'?)");
+    }
+    case LF_PARAM_INT_LIST:
+    case LF_PARAM_DOUBLE_LIST: {
+      const auto items = SplitList(value);
+      for (size_t i = 0; i < items.size(); ++i) {
+        std::string why = CheckNumber(d, items[i], d.type == LF_PARAM_INT_LIST);
+        if (!why.empty()) return "element " + std::to_string(i) + ": " + why;
+      }
+      return "";
+    }
+    case LF_PARAM_STRING_LIST: return "";
+  }
+  return "unknown parameter type";
+}
+
+std::map<std::string, std::string> ResolveParams(
+    const std::vector<ParamDecl>& decls,
+    const std::vector<std::pair<std::string, std::string>>& given) {
+  std::map<std::string, std::string> out;
+  std::vector<std::string> names;
+  for (const auto& d : decls) names.push_back(d.name);
+  for (const auto& [name, value] : given) {
+    auto it = std::find_if(decls.begin(), decls.end(),
+                           [&](const ParamDecl& d) { return d.name == name; });
+    if (it == decls.end()) {
+      std::string hint = DidYouMean(name, names);
+      throw ParamError("unknown parameter '" + name + "'" +
+                       (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
+    }
+    if (out.count(name)) throw ParamError("parameter '" + name + "' given twice");
+    const std::string why = ValidateParamValue(*it, value);
+    if (!why.empty()) throw ParamError("parameter '" + name + "': " + why);
+    out[name] = value;
+  }
+  for (const auto& d : decls) {
+    if (out.count(d.name)) continue;
+    if (d.required()) throw ParamError("parameter '" + d.name + "' is required (" + d.doc + ")");
+    out[d.name] = d.default_value;
+  }
+  return out;
+}
+
+std::string DidYouMean(const std::string& word, const std::vector<std::string>& candidates) {
+  auto distance = [](const std::string& a, const std::string& b) {
+    std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+    for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+    for (size_t i = 1; i <= a.size(); ++i) {
+      cur[0] = i;
+      for (size_t j = 1; j <= b.size(); ++j)
+        cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] != b[j - 1])});
+      std::swap(prev, cur);
+    }
+    return prev[b.size()];
+  };
+  std::string best;
+  size_t best_d = std::max<size_t>(2, word.size() / 3) + 1;
+  for (const auto& c : candidates) {
+    const size_t d = distance(word, c);
+    if (d < best_d) { best_d = d; best = c; }
+  }
+  return best;
+}
+
+}  // namespace locforge
