@@ -2,8 +2,8 @@
  *
  * This header is plain C on purpose: it is the only contract between the host
  * (`locforge`) and a plugin shared library, so plugins built by other people,
- * with other compilers or flags, keep working. Read docs/plugin-abi.md (or the
- * "Plugin ABI" section of README.md) for the compatibility rules. In short:
+ * with other compilers or flags, keep working. sdk/PLUGIN_ABI.md gives the
+ * compatibility rules in full. In short:
  *
  *  - A plugin exports exactly one symbol, `locforge_plugin_entry`, which
  *    returns a pointer to a static LfPluginInfo. The host checks
