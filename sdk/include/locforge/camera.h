@@ -63,6 +63,13 @@ struct Camera {
 
   // Checks the parameter count against the model. Returns "" or the reason.
   std::string Validate() const;
+
+  // The model's entry of CameraModels().
+  const CameraModelInfo& info() const { return CameraModelInfoOf(model); }
+  // A camera of the model named `model_name` (kapture/COLMAP spelling); throws
+  // InputError when the name is unknown. Parameters are not validated here.
+  static Camera FromModelName(const std::string& model_name, int width, int height,
+                              std::vector<double> params);
 };
 
 }  // namespace locforge
