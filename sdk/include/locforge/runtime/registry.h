@@ -26,11 +26,27 @@ struct LoadedPlugin {
   void* handle = nullptr;  // dlopen handle; never closed (plugins are not unloaded)
 };
 
+// The C++ form of one LfPortSpec.
+struct PortDecl {
+  std::string name;
+  std::string artifact_type;
+  uint32_t flags = 0;  // LF_PORT_OPTIONAL | LF_PORT_MULTIPLE
+  std::string doc;
+};
+
 struct StageEntry {
   std::string id;  // "kind/name"
   const LfStageInfo* info = nullptr;
   const LoadedPlugin* plugin = nullptr;
   std::vector<ParamDecl> params;  // the C++ form of info->params
+  // The C++ form of info->inputs / info->outputs. Use these rather than
+  // indexing the C arrays: a newer plugin's structs may be larger.
+  std::vector<PortDecl> inputs;
+  std::vector<PortDecl> outputs;
+
+  bool runnable() const { return (info->flags & LF_STAGE_RUNNABLE) != 0; }
+  bool per_item() const { return (info->flags & LF_STAGE_PER_ITEM) != 0; }
+  bool is_component() const { return info->component_interface != nullptr; }
 };
 
 // A library that was refused, and why (shown by `plugins list`; it is skipped).
@@ -48,11 +64,16 @@ class Registry {
 
   // Plugin folders searched by default, in order: the build's plugin folder,
   // the install's lib/locforge/plugins (relative to the executable), then
-  // each folder of $LOCFORGE_PLUGIN_PATH (':'-separated).
+  // each folder of $LOCFORGE_PLUGIN_PATH (':'-separated). Missing folders are
+  // skipped, duplicates removed. With LOCFORGE_NO_DEFAULT_PLUGINS=1 only
+  // $LOCFORGE_PLUGIN_PATH is used (tests use it to isolate themselves).
   static std::vector<fs::path> DefaultSearchPath();
 
   // Loads every shared library (*.so) directly inside `folder`, sorted by name.
+  // A missing folder loads nothing.
   void LoadFolder(const fs::path& folder);
+  // LoadFolder on each, in order (e.g. DefaultSearchPath()).
+  void LoadFolders(const std::vector<fs::path>& folders);
   // Loads one library. A broken one (not loadable, no entry point, wrong ABI
   // version or struct size, entry returning NULL, malformed metadata) is
   // recorded in problems() and skipped. Returns true when loaded.
@@ -95,6 +116,8 @@ struct RunOptions {
   int shard_count = 1;
   // Per-item stages keep journals of finished items here, one per shard, so a
   // killed or sharded run resumes where it stopped. Default: output_dir.
+  // Files: `.items-done.<shard_index>-of-<shard_count>`, one item id a line.
+  // An item belongs to shard FNV-1a-64(item id) % shard_count.
   fs::path journal_dir;
   std::function<void(int level, const std::string& message)> log;
   std::function<void(uint64_t done, uint64_t total, const std::string& what)> progress;
@@ -105,7 +128,7 @@ struct RunResult {
   // False when this shard finished its items but others are still pending,
   // so finalize did not run yet.
   bool complete = false;
-  uint64_t items_total = 0;     // per-item stages
+  uint64_t items_total = 0;     // per-item stages: items of this shard
   uint64_t items_processed = 0; // processed by this call
   uint64_t items_resumed = 0;   // found done in journals
   double seconds = 0;
@@ -139,6 +162,9 @@ class StageInstance {
 // The registry whose stages can be created as components from inside a run
 // (LfRunContext::create_component). The host sets it once at start.
 void SetComponentRegistry(const Registry* registry);
+
+// The shard an item belongs to (FNV-1a 64 of its id, modulo shard_count).
+int ShardOfItem(const std::string& item, int shard_count);
 
 }  // namespace locforge::runtime
 
