@@ -107,8 +107,9 @@ struct IntParamTraits {
   static bool Parse(const std::string& s, I* v) {
     int64_t x;
     if (!ParseInt(s, &x)) return false;
+    // Compare as signed first: a negative x cast to uint64_t would look huge.
     if (x < static_cast<int64_t>(std::numeric_limits<I>::min()) ||
-        static_cast<uint64_t>(x) > static_cast<uint64_t>(std::numeric_limits<I>::max()))
+        (x > 0 && static_cast<uint64_t>(x) > static_cast<uint64_t>(std::numeric_limits<I>::max())))
       return false;
     *v = static_cast<I>(x);
     return true;

@@ -1,6 +1,7 @@
 #include "locforge/params.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -68,7 +69,8 @@ bool ParseBool(const std::string& s, bool* v) {
 }
 
 bool ParseInt(const std::string& s, int64_t* v) {
-  if (s.empty()) return false;
+  // strtoll would skip leading blanks; the whole string must be the number.
+  if (s.empty() || std::isspace(static_cast<unsigned char>(s[0]))) return false;
   errno = 0;
   char* end = nullptr;
   const long long x = std::strtoll(s.c_str(), &end, 10);
@@ -78,11 +80,14 @@ bool ParseInt(const std::string& s, int64_t* v) {
 }
 
 bool ParseDouble(const std::string& s, double* v) {
-  if (s.empty()) return false;
+  if (s.empty() || std::isspace(static_cast<unsigned char>(s[0]))) return false;
   errno = 0;
   char* end = nullptr;
   const double x = std::strtod(s.c_str(), &end);
-  if (errno == ERANGE || end != s.c_str() + s.size() || std::isnan(x)) return false;
+  // ERANGE also flags underflow to a subnormal, which FormatDouble can print:
+  // only an overflow ("1e999") is refused.
+  const bool overflow = errno == ERANGE && std::isinf(x);
+  if (overflow || end != s.c_str() + s.size() || std::isnan(x)) return false;
   *v = x;
   return true;
 }
@@ -171,13 +176,19 @@ std::map<std::string, std::string> ResolveParams(
 }
 
 std::string DidYouMean(const std::string& word, const std::vector<std::string>& candidates) {
+  // Edit distance where swapping two neighbouring letters ("ratoi") is one
+  // edit, as are insertions, deletions and substitutions.
   auto distance = [](const std::string& a, const std::string& b) {
-    std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+    std::vector<size_t> prev2(b.size() + 1), prev(b.size() + 1), cur(b.size() + 1);
     for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
     for (size_t i = 1; i <= a.size(); ++i) {
       cur[0] = i;
-      for (size_t j = 1; j <= b.size(); ++j)
+      for (size_t j = 1; j <= b.size(); ++j) {
         cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] != b[j - 1])});
+        if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+          cur[j] = std::min(cur[j], prev2[j - 2] + 1);
+      }
+      std::swap(prev2, prev);
       std::swap(prev, cur);
     }
     return prev[b.size()];

@@ -1,0 +1,350 @@
+#include "locforge/params.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <random>
+
+namespace locforge {
+namespace {
+
+using Given = std::vector<std::pair<std::string, std::string>>;
+
+// Runs `f`, expecting a ParamError whose message contains every fragment.
+template <typename F>
+void ExpectParamError(F&& f, const std::vector<std::string>& fragments) {
+  try {
+    f();
+    ADD_FAILURE() << "no ParamError thrown";
+  } catch (const ParamError& e) {
+    EXPECT_EQ(e.code(), LF_BAD_PARAMS);
+    for (const auto& fragment : fragments)
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
+          << "'" << fragment << "' not in: " << e.what();
+  }
+}
+
+TEST(FormatDouble, ShortestRoundTrip) {
+  EXPECT_EQ(FormatDouble(0.1), "0.1");
+  EXPECT_EQ(FormatDouble(1.0), "1");
+  EXPECT_EQ(FormatDouble(-2.5), "-2.5");
+  EXPECT_EQ(FormatDouble(0.0), "0");
+  EXPECT_EQ(FormatDouble(1e-7), "1e-07");
+  EXPECT_EQ(FormatDouble(123456789.0), "123456789");
+  EXPECT_EQ(FormatDouble(0.1 + 0.2), "0.30000000000000004");  // 17 digits needed
+  EXPECT_EQ(FormatDouble(1.0 / 3.0), "0.3333333333333333");
+  EXPECT_EQ(FormatDouble(std::numeric_limits<double>::infinity()), "inf");
+
+  std::mt19937_64 rng(7);
+  for (int i = 0; i < 20000; ++i) {
+    double x;
+    const uint64_t bits = rng();
+    std::memcpy(&x, &bits, sizeof(x));
+    if (!std::isfinite(x)) continue;
+    const std::string s = FormatDouble(x);
+    double back = 0;
+    ASSERT_TRUE(ParseDouble(s, &back)) << s;
+    ASSERT_EQ(back, x) << s;
+    // Shortest: one significant digit fewer does not read back.
+    char shorter[64];
+    int digits = 0;  // significant digits of the mantissa
+    bool leading = true;
+    for (char c : s.substr(0, s.find('e'))) {
+      if (!std::isdigit(static_cast<unsigned char>(c))) continue;
+      if (leading && c == '0') continue;
+      leading = false;
+      ++digits;
+    }
+    if (digits > 1 && digits <= 17) {
+      std::snprintf(shorter, sizeof(shorter), "%.*g", digits - 1, x);
+      EXPECT_NE(std::strtod(shorter, nullptr), x) << s;
+    }
+  }
+}
+
+TEST(Lists, SplitJoinRoundTrip) {
+  const std::vector<std::string> items = {"a", "", "b c", "d,e"};
+  const std::string joined = JoinList(items);
+  EXPECT_EQ(joined, std::string("a\x1f\x1f" "b c\x1f" "d,e"));
+  EXPECT_EQ(SplitList(joined), items);
+  EXPECT_TRUE(SplitList("").empty());
+  EXPECT_EQ(JoinList({}), "");
+  EXPECT_EQ(SplitList("x"), std::vector<std::string>{"x"});
+  EXPECT_EQ(SplitList(std::string("x\x1f")), (std::vector<std::string>{"x", ""}));
+}
+
+TEST(Parse, StrictParsers) {
+  int64_t i = 0;
+  EXPECT_TRUE(ParseInt("-42", &i));
+  EXPECT_EQ(i, -42);
+  EXPECT_TRUE(ParseInt("9223372036854775807", &i));
+  EXPECT_EQ(i, std::numeric_limits<int64_t>::max());
+  EXPECT_FALSE(ParseInt("9223372036854775808", &i));  // overflow
+  EXPECT_FALSE(ParseInt("12abc", &i));
+  EXPECT_FALSE(ParseInt("1.5", &i));
+  EXPECT_FALSE(ParseInt("", &i));
+  EXPECT_FALSE(ParseInt(" 12", &i));
+  EXPECT_FALSE(ParseInt("12 ", &i));
+
+  double d = 0;
+  EXPECT_TRUE(ParseDouble("2.5e3", &d));
+  EXPECT_EQ(d, 2500);
+  EXPECT_FALSE(ParseDouble("nan", &d));
+  EXPECT_FALSE(ParseDouble("1e999", &d));
+  EXPECT_FALSE(ParseDouble("1.0x", &d));
+  EXPECT_FALSE(ParseDouble(" 1", &d));
+  EXPECT_FALSE(ParseDouble("", &d));
+  // A subnormal printed by FormatDouble reads back (strtod flags it ERANGE).
+  const double tiny = std::numeric_limits<double>::denorm_min();
+  EXPECT_TRUE(ParseDouble(FormatDouble(tiny), &d)) << FormatDouble(tiny);
+  EXPECT_EQ(d, tiny);
+
+  bool b = false;
+  EXPECT_TRUE(ParseBool("true", &b));
+  EXPECT_TRUE(b);
+  EXPECT_TRUE(ParseBool("off", &b));
+  EXPECT_FALSE(b);
+  EXPECT_FALSE(ParseBool("maybe", &b));
+}
+
+std::vector<ParamDecl> SampleDecls() {
+  ParamDecl threads;
+  threads.name = "num_threads";
+  threads.type = LF_PARAM_INT;
+  threads.default_value = "4";
+  threads.has_min = true;
+  threads.min_value = 1;
+  threads.has_max = true;
+  threads.max_value = 64;
+  ParamDecl ratio;
+  ratio.name = "ratio";
+  ratio.type = LF_PARAM_DOUBLE;
+  ratio.default_value = "0.8";
+  ratio.has_min = true;
+  ratio.min_value = 0;
+  ratio.has_max = true;
+  ratio.max_value = 1;
+  ParamDecl method;
+  method.name = "method";
+  method.type = LF_PARAM_ENUM;
+  method.default_value = "gicp";
+  method.choices = {"icp", "gicp", "ndt"};
+  ParamDecl input;
+  input.name = "input_path";
+  input.type = LF_PARAM_PATH;
+  input.flags = LF_PARAM_REQUIRED;
+  input.doc = "the folder to read";
+  ParamDecl sizes;
+  sizes.name = "sizes";
+  sizes.type = LF_PARAM_INT_LIST;
+  sizes.default_value = JoinList({"1", "2"});
+  sizes.has_min = true;
+  sizes.min_value = 0;
+  return {threads, ratio, method, input, sizes};
+}
+
+TEST(ResolveParams, DefaultsAndGivenValues) {
+  const auto out = ResolveParams(SampleDecls(), {{"input_path", "/data"}, {"ratio", "0.5"}});
+  EXPECT_EQ(out.at("num_threads"), "4");
+  EXPECT_EQ(out.at("ratio"), "0.5");
+  EXPECT_EQ(out.at("method"), "gicp");
+  EXPECT_EQ(out.at("input_path"), "/data");
+  EXPECT_EQ(out.at("sizes"), JoinList({"1", "2"}));
+  EXPECT_EQ(out.size(), 5u);
+}
+
+TEST(ResolveParams, UnknownParameterWithHint) {
+  ExpectParamError([] { ResolveParams(SampleDecls(), {{"input_path", "x"}, {"num_thread", "2"}}); },
+                   {"unknown parameter 'num_thread'", "did you mean 'num_threads'"});
+  // Nothing close: no hint.
+  try {
+    ResolveParams(SampleDecls(), {{"input_path", "x"}, {"completely_different", "2"}});
+    FAIL();
+  } catch (const ParamError& e) {
+    EXPECT_EQ(std::string(e.what()).find("did you mean"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ResolveParams, OutOfRange) {
+  ExpectParamError([] { ResolveParams(SampleDecls(), {{"input_path", "x"}, {"num_threads", "0"}}); },
+                   {"num_threads", "out of range [1, 64]"});
+  ExpectParamError([] { ResolveParams(SampleDecls(), {{"input_path", "x"}, {"ratio", "1.5"}}); },
+                   {"ratio", "1.5", "[0, 1]"});
+  ExpectParamError(
+      [] { ResolveParams(SampleDecls(), {{"input_path", "x"}, {"sizes", JoinList({"3", "-1"})}}); },
+      {"sizes", "element 1"});
+  ExpectParamError([] { ResolveParams(SampleDecls(), {{"input_path", "x"}, {"num_threads", "two"}}); },
+                   {"num_threads", "expected an integer, got 'two'"});
+  // Bounds are inclusive.
+  EXPECT_NO_THROW(ResolveParams(SampleDecls(), {{"input_path", "x"}, {"num_threads", "64"}}));
+}
+
+TEST(ResolveParams, Required) {
+  ExpectParamError([] { ResolveParams(SampleDecls(), {}); },
+                   {"'input_path' is required", "the folder to read"});
+  ExpectParamError([] { ResolveParams(SampleDecls(), {{"input_path", ""}}); },
+                   {"input_path", "empty"});
+}
+
+TEST(ResolveParams, EnumChoices) {
+  EXPECT_EQ(ResolveParams(SampleDecls(), {{"input_path", "x"}, {"method", "ndt"}}).at("method"),
+            "ndt");
+  ExpectParamError([] { ResolveParams(SampleDecls(), {{"input_path", "x"}, {"method", "gicpp"}}); },
+                   {"'gicpp' is not one of {icp, gicp, ndt}", "did you mean 'gicp'"});
+  ExpectParamError([] { ResolveParams(SampleDecls(), {{"input_path", "x"}, {"method", "GICP"}}); },
+                   {"'GICP' is not one of"});
+}
+
+TEST(ResolveParams, GivenTwice) {
+  ExpectParamError(
+      [] { ResolveParams(SampleDecls(), {{"input_path", "x"}, {"ratio", "0.1"}, {"ratio", "0.2"}}); },
+      {"'ratio' given twice"});
+}
+
+TEST(DidYouMean, ClosestByEditDistance) {
+  EXPECT_EQ(DidYouMean("max_keypoint", {"max_keypoints", "min_score"}), "max_keypoints");
+  EXPECT_EQ(DidYouMean("rato", {"ratio", "radius"}), "ratio");
+  // A swap of two neighbouring letters counts as one edit.
+  EXPECT_EQ(DidYouMean("max_keypionts", {"min_keypoints", "max_keypoints"}), "max_keypoints");
+  EXPECT_EQ(DidYouMean("voxle_size", {"voxel_size", "vox_scale"}), "voxel_size");
+  EXPECT_EQ(DidYouMean("voxel_size", {"max_keypoints", "min_score"}), "");
+  EXPECT_EQ(DidYouMean("x", {}), "");
+}
+
+struct SampleOptions {
+  int max_keypoints = 8000;          // Keypoints kept per image.
+  double ratio = 0.8;                // Lowe ratio.
+  bool root_sift = true;             // Hellinger-normalise.
+  std::string mode = "fast";         // Speed/quality trade-off.
+  std::string database;              // Required path.
+  int offset = -3;                   // Negative default.
+  uint32_t seed = 7;                 // Random seed.
+  int64_t big = 5000000000;          // Beyond 32 bits.
+  float scale = 0.25f;               // A float field.
+  std::vector<double> weights = {0.5, 1.5};
+  std::vector<std::string> tags = {"a", "b"};
+  int min_size = 1;
+  int max_size = 10;
+
+  static void Declare(ParamSchema<SampleOptions>& s) {
+    s.Add("max_keypoints", &SampleOptions::max_keypoints, "Keypoints kept per image").Min(1);
+    s.Add("ratio", &SampleOptions::ratio, "Lowe ratio").Range(0, 1);
+    s.Add("root_sift", &SampleOptions::root_sift, "Hellinger-normalise");
+    s.Add("mode", &SampleOptions::mode, "Speed/quality trade-off").Choices({"fast", "exact"});
+    s.Add("database", &SampleOptions::database, "Database file").Path().Required();
+    s.Add("offset", &SampleOptions::offset, "Offset").Range(-10, 10);
+    s.Add("seed", &SampleOptions::seed, "Random seed").NoCacheKey();
+    s.Add("big", &SampleOptions::big, "Large count");
+    s.Add("scale", &SampleOptions::scale, "Scale");
+    s.Add("weights", &SampleOptions::weights, "Weights").Min(0);
+    s.Add("tags", &SampleOptions::tags, "Tags");
+    s.Add("min_size", &SampleOptions::min_size, "Smallest size");
+    s.Add("max_size", &SampleOptions::max_size, "Largest size");
+  }
+  bool Check(std::string* why) const {
+    if (min_size > max_size) {
+      *why = "min_size (" + std::to_string(min_size) + ") must not exceed max_size (" +
+             std::to_string(max_size) + ")";
+      return false;
+    }
+    return true;
+  }
+};
+
+TEST(ParamSchema, DeclsCarryInClassDefaults) {
+  const ParamSchema<SampleOptions> schema;
+  const auto decls = schema.Decls();
+  ASSERT_EQ(decls.size(), 13u);
+  std::map<std::string, ParamDecl> by_name;
+  for (const auto& d : decls) by_name[d.name] = d;
+  EXPECT_EQ(by_name["max_keypoints"].default_value, "8000");
+  EXPECT_EQ(by_name["max_keypoints"].type, LF_PARAM_INT);
+  EXPECT_TRUE(by_name["max_keypoints"].has_min);
+  EXPECT_FALSE(by_name["max_keypoints"].has_max);
+  EXPECT_EQ(by_name["ratio"].default_value, "0.8");
+  EXPECT_EQ(by_name["ratio"].type, LF_PARAM_DOUBLE);
+  EXPECT_EQ(by_name["ratio"].max_value, 1);
+  EXPECT_EQ(by_name["root_sift"].default_value, "true");
+  EXPECT_EQ(by_name["root_sift"].type, LF_PARAM_BOOL);
+  EXPECT_EQ(by_name["mode"].type, LF_PARAM_ENUM);
+  EXPECT_EQ(by_name["mode"].choices, (std::vector<std::string>{"fast", "exact"}));
+  EXPECT_EQ(by_name["mode"].default_value, "fast");
+  EXPECT_EQ(by_name["database"].type, LF_PARAM_PATH);
+  EXPECT_TRUE(by_name["database"].required());
+  EXPECT_EQ(by_name["database"].default_value, "");
+  EXPECT_EQ(by_name["offset"].default_value, "-3");
+  EXPECT_EQ(by_name["seed"].flags & LF_PARAM_NO_CACHE_KEY, LF_PARAM_NO_CACHE_KEY);
+  EXPECT_EQ(by_name["big"].default_value, "5000000000");
+  EXPECT_EQ(by_name["scale"].default_value, "0.25");
+  EXPECT_EQ(by_name["weights"].type, LF_PARAM_DOUBLE_LIST);
+  EXPECT_EQ(by_name["weights"].default_value, JoinList({"0.5", "1.5"}));
+  EXPECT_EQ(by_name["tags"].type, LF_PARAM_STRING_LIST);
+  EXPECT_EQ(by_name["max_keypoints"].doc, "Keypoints kept per image");
+}
+
+TEST(ParamSchema, ParseFillsOptions) {
+  const ParamSchema<SampleOptions> schema;
+  const SampleOptions defaults = schema.Parse({{"database", "db.sqlite"}});
+  EXPECT_EQ(defaults.max_keypoints, 8000);
+  EXPECT_EQ(defaults.offset, -3);  // negative ints parse back
+  EXPECT_EQ(defaults.big, 5000000000);
+  EXPECT_EQ(defaults.database, "db.sqlite");
+  EXPECT_EQ(defaults.weights, (std::vector<double>{0.5, 1.5}));
+
+  const SampleOptions o = schema.Parse({{"database", "d"},
+                                        {"max_keypoints", "100"},
+                                        {"ratio", "0.75"},
+                                        {"root_sift", "false"},
+                                        {"mode", "exact"},
+                                        {"offset", "-10"},
+                                        {"seed", "4294967295"},
+                                        {"scale", "2"},
+                                        {"weights", JoinList({"0", "3.25"})},
+                                        {"tags", JoinList({"x"})}});
+  EXPECT_EQ(o.max_keypoints, 100);
+  EXPECT_EQ(o.ratio, 0.75);
+  EXPECT_FALSE(o.root_sift);
+  EXPECT_EQ(o.mode, "exact");
+  EXPECT_EQ(o.offset, -10);
+  EXPECT_EQ(o.seed, 4294967295u);
+  EXPECT_EQ(o.scale, 2.0f);
+  EXPECT_EQ(o.weights, (std::vector<double>{0, 3.25}));
+  EXPECT_EQ(o.tags, (std::vector<std::string>{"x"}));
+}
+
+TEST(ParamSchema, ParseRefusesValuesTheFieldCannotHold) {
+  const ParamSchema<SampleOptions> schema;
+  ExpectParamError([&] { schema.Parse({{"database", "d"}, {"seed", "-1"}}); }, {"seed", "-1"});
+  ExpectParamError([&] { schema.Parse({{"database", "d"}, {"seed", "4294967296"}}); },
+                   {"seed"});
+  ExpectParamError([&] { schema.Parse({{"database", "d"}, {"max_keypoints", "3000000000"}}); },
+                   {"max_keypoints"});
+  ExpectParamError([&] { schema.Parse({{"database", "d"}, {"weights", JoinList({"1", "-2"})}}); },
+                   {"weights", "element 1"});
+}
+
+TEST(ParamSchema, CheckRefusal) {
+  const ParamSchema<SampleOptions> schema;
+  ExpectParamError(
+      [&] { schema.Parse({{"database", "d"}, {"min_size", "20"}, {"max_size", "5"}}); },
+      {"min_size (20) must not exceed max_size (5)"});
+  EXPECT_NO_THROW(schema.Parse({{"database", "d"}, {"min_size", "5"}, {"max_size", "5"}}));
+}
+
+TEST(ParamSchema, NoOptions) {
+  const ParamSchema<NoOptions> schema;
+  EXPECT_TRUE(schema.Decls().empty());
+  EXPECT_NO_THROW(schema.Parse({}));
+  ExpectParamError([&] { schema.Parse({{"anything", "1"}}); }, {"unknown parameter 'anything'"});
+}
+
+TEST(ParamTypeName, Names) {
+  EXPECT_STREQ(ParamTypeName(LF_PARAM_DOUBLE_LIST), "double list");
+  EXPECT_STREQ(ParamTypeName(LF_PARAM_PATH), "path");
+}
+
+}  // namespace
+}  // namespace locforge
