@@ -1,0 +1,81 @@
+// Ray casting: a bounding-volume hierarchy over the scene quads, and the World
+// (static scene of one day + the people at one instant) that rays hit.
+#ifndef LOCFORGE_SIM_RAYCAST_H_
+#define LOCFORGE_SIM_RAYCAST_H_
+
+#include <Eigen/Core>
+#include <limits>
+#include <vector>
+
+#include "people.h"
+#include "scene.h"
+#include "texture.h"
+
+namespace locforge::sim {
+
+struct Hit {
+  double t = std::numeric_limits<double>::infinity();  // distance along the unit ray
+  int quad = -1;        // index in Scene::quads, or -1
+  int person = -1;      // index in the crowd, or -1
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit, facing the ray
+  Eigen::Vector2d tex_uv = Eigen::Vector2d::Zero();   // texture coordinates (periods)
+  double period_m = 1;  // metres per texture period (for mip selection)
+  bool hit() const { return quad >= 0 || person >= 0; }
+};
+
+// Ray-quad and ray-cylinder tests; t must lie in (t_min, hit->t).
+bool IntersectQuad(const Quad& q, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
+                   Hit* hit);
+bool IntersectCylinder(const Cylinder& c, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                       double t_min, Hit* hit);
+
+class QuadBvh {
+ public:
+  explicit QuadBvh(const std::vector<Quad>& quads);
+  // Nearest quad along o + t d with t in (t_min, hit->t); updates `hit`.
+  bool Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, Hit* hit) const;
+  size_t num_nodes() const { return nodes_.size(); }
+
+ private:
+  struct Node {
+    Eigen::Vector3d lo, hi;
+    int left = -1, right = -1;  // children, or -1 for a leaf
+    int first = 0, count = 0;   // leaf range in order_
+  };
+  int Build(int first, int count, const std::vector<Eigen::Vector3d>& centroids);
+
+  const std::vector<Quad>& quads_;
+  std::vector<int> order_;
+  std::vector<Node> nodes_;
+};
+
+// The scene on one day plus people; what cameras and LiDARs observe.
+class World {
+ public:
+  World(const Scene& scene, const Crowd& crowd, TextureLibrary* textures, int day);
+
+  const Scene& scene() const { return scene_; }
+  const Crowd& crowd() const { return crowd_; }
+
+  // Nearest surface along the unit ray o + t d, t > t_min, among the quads
+  // and the given people cylinders (Crowd::At(time)).
+  bool Cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const std::vector<Cylinder>& people,
+            Hit* hit, double t_min = 1e-6) const;
+
+  // Surface colour (RGB, 0-255) at a hit; `footprint_m` is the size of the
+  // pixel on the surface, used to pick the mip level.
+  Eigen::Vector3f Albedo(const Hit& hit, double footprint_m) const;
+  bool Glossy(const Hit& hit) const;
+
+ private:
+  const Scene& scene_;
+  const Crowd& crowd_;
+  QuadBvh bvh_;
+  std::vector<const Texture*> material_textures_;
+  std::vector<const Texture*> person_textures_;
+};
+
+}  // namespace locforge::sim
+
+#endif  // LOCFORGE_SIM_RAYCAST_H_
