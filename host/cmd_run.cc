@@ -1,0 +1,235 @@
+// `locforge validate GRAPH` and `locforge run GRAPH --workspace DIR`.
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <iostream>
+#include <stdexcept>
+#include <thread>
+
+#include "cli.h"
+#include "executor.h"
+#include "graph.h"
+#include "locforge/params.h"
+
+namespace locforge::host {
+
+namespace {
+
+struct GraphArgs {
+  std::string graph;
+  std::vector<Override> sets;
+  std::vector<fs::path> plugin_paths;
+  // run only
+  std::string workspace;
+  int threads = 0;
+  bool force = false;
+  int shard_index = 0, shard_count = 1;
+  std::string variant;
+};
+
+bool ParseShard(const std::string& text, int* index, int* count) {
+  const size_t slash = text.find('/');
+  int64_t i = 0, n = 0;
+  if (slash == std::string::npos || !ParseInt(text.substr(0, slash), &i) ||
+      !ParseInt(text.substr(slash + 1), &n) || n < 1 || i < 0 || i >= n || n > 100000)
+    return false;
+  *index = static_cast<int>(i);
+  *count = static_cast<int>(n);
+  return true;
+}
+
+// Parses the arguments of validate (run=false) or run. Returns -1 when fine,
+// else the exit code after printing the usage error.
+int ParseArgs(const std::string& command, const Args& args, bool run, GraphArgs* out) {
+  try {
+    for (size_t i = 0; i < args.size(); ++i) {
+      std::string v;
+      if (TakeOption(args, &i, "--set", &v)) {
+        Override o;
+        if (!ParseOverride(v, &o)) return UsageError(command, "--set expects KEY=VALUE, got '" + v + "'");
+        out->sets.push_back(o);
+      } else if (TakeOption(args, &i, "--plugin-path", &v)) {
+        out->plugin_paths.push_back(fs::absolute(v));
+      } else if (run && TakeOption(args, &i, "--workspace", &v)) {
+        out->workspace = v;
+      } else if (run && TakeOption(args, &i, "--threads", &v)) {
+        int64_t n = 0;
+        if (!ParseInt(v, &n) || n < 1 || n > 4096)
+          return UsageError(command, "--threads expects a number from 1 to 4096, got '" + v + "'");
+        out->threads = static_cast<int>(n);
+      } else if (run && TakeOption(args, &i, "--shard", &v)) {
+        if (!ParseShard(v, &out->shard_index, &out->shard_count))
+          return UsageError(command, "--shard expects I/N with 0 <= I < N, got '" + v + "'");
+      } else if (run && TakeOption(args, &i, "--variant", &v)) {
+        out->variant = v;
+      } else if (run && args[i] == "--force") {
+        out->force = true;
+      } else if (args[i].rfind("-", 0) == 0) {
+        std::vector<std::string> known = {"--set", "--plugin-path", "--help"};
+        if (run) known.insert(known.end(), {"--workspace", "--threads", "--force", "--shard", "--variant"});
+        const std::string hint = DidYouMean(args[i], known);
+        return UsageError(command, "unknown option '" + args[i] + "'" +
+                                       (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
+      } else if (out->graph.empty()) {
+        out->graph = args[i];
+      } else {
+        return UsageError(command, "unexpected argument '" + args[i] + "'");
+      }
+    }
+  } catch (const std::invalid_argument& e) {
+    return UsageError(command, e.what());
+  }
+  if (out->graph.empty()) return UsageError(command, "expected a graph file (GRAPH.yaml)");
+  if (run && out->workspace.empty()) return UsageError(command, "--workspace DIR is required");
+  if (out->force && out->shard_count > 1)
+    return UsageError(command, "--force cannot be combined with --shard (shards share progress)");
+  return -1;
+}
+
+// Parses, loads plugins and validates every selected variant. Prints all
+// problems; returns false when there were any.
+bool PrepareGraph(const GraphArgs& args, runtime::Registry* registry,
+                  std::vector<ResolvedGraph>* resolved, size_t* node_count) {
+  Graph graph;
+  Diagnostics errors;
+  auto print = [&errors] {
+    for (const auto& d : Deduplicate(errors)) std::cerr << d.ToString() << "\n";
+    return false;
+  };
+  if (!LoadGraph(args.graph, args.sets, &graph, &errors)) return print();
+  std::vector<fs::path> extra = args.plugin_paths;
+  for (const auto& [folder, where] : graph.plugin_paths) {
+    std::error_code ec;
+    if (!fs::is_directory(folder, ec))
+      errors.push_back({where, "plugin folder '" + folder.string() + "' does not exist"});
+    extra.push_back(folder);
+  }
+  for (const auto& problem : LoadPlugins(registry, extra))
+    errors.push_back({{args.graph}, "plugin " + problem.file.string() + " refused: " +
+                                        problem.message});
+  for (const auto& d : registry->duplicates())
+    errors.push_back({{args.graph}, "duplicate stage: " + d});
+  std::vector<const GraphVariant*> selected;
+  std::vector<std::string> names;
+  for (const auto& v : graph.variants) {
+    names.push_back(v.name);
+    if (args.variant.empty() || v.name == args.variant) selected.push_back(&v);
+  }
+  if (selected.empty()) {
+    const std::string hint = DidYouMean(args.variant, names);
+    std::string all;
+    for (const auto& n : names) all += (all.empty() ? "" : ", ") + (n.empty() ? "\"\"" : n);
+    errors.push_back({{"--variant " + args.variant},
+                      "unknown variant" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") +
+                          "; expected one of: " + all});
+  }
+  const StageLookup stages = LookupOf(*registry);
+  *node_count = 0;
+  for (const auto* v : selected) {
+    ResolvedGraph r;
+    if (ResolveVariant(*v, stages, &r, &errors)) {
+      *node_count += r.nodes.size();
+      resolved->push_back(std::move(r));
+    }
+  }
+  if (!errors.empty()) return print();
+  return true;
+}
+
+std::atomic<bool> g_cancel{false};
+
+extern "C" void OnInterrupt(int) {
+  g_cancel.store(true);
+  std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C kills at once
+}
+
+}  // namespace
+
+int ValidateCommand(const Args& args) {
+  if (WantsHelp(args)) {
+    std::cout << HelpText("validate");
+    return 0;
+  }
+  GraphArgs ga;
+  if (const int rc = ParseArgs("validate", args, false, &ga); rc >= 0) return rc;
+  runtime::Registry registry;
+  std::vector<ResolvedGraph> resolved;
+  size_t nodes = 0;
+  if (!PrepareGraph(ga, &registry, &resolved, &nodes)) return 2;
+  std::cout << ga.graph << ": ok, " << resolved.front().nodes.size() << " nodes";
+  if (resolved.size() > 1 || !resolved.front().variant.empty())
+    std::cout << ", " << resolved.size() << " variants";
+  std::cout << "\n";
+  return 0;
+}
+
+int RunCommand(const Args& args) {
+  if (WantsHelp(args)) {
+    std::cout << HelpText("run");
+    return 0;
+  }
+  GraphArgs ga;
+  if (const int rc = ParseArgs("run", args, true, &ga); rc >= 0) return rc;
+  runtime::Registry registry;
+  std::vector<ResolvedGraph> resolved;
+  size_t nodes = 0;
+  if (!PrepareGraph(ga, &registry, &resolved, &nodes)) return 2;
+  runtime::SetComponentRegistry(&registry);
+
+  std::unique_ptr<Workspace> workspace;
+  try {
+    workspace = std::make_unique<Workspace>(ga.workspace);
+  } catch (const std::exception& e) {
+    std::cerr << "locforge run: cannot use workspace '" << ga.workspace << "': " << e.what() << "\n";
+    return 2;
+  }
+  Reporter reporter(std::cerr, ::isatty(STDERR_FILENO) != 0);
+  const fs::path log_file = workspace->NewLogFile();
+  reporter.OpenLogFile(log_file.string());
+  std::string command_line = "locforge run";
+  for (const auto& a : args) command_line += " " + a;
+  reporter.FileOnly(command_line);
+
+  ExecOptions options;
+  options.threads = ga.threads > 0 ? ga.threads
+                                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  options.force = ga.force;
+  options.shard_index = ga.shard_index;
+  options.shard_count = ga.shard_count;
+  options.cancel = &g_cancel;
+  g_cancel.store(false);
+  std::signal(SIGINT, OnInterrupt);
+  Executor executor(*workspace, reporter, options);
+  ExecResult result;
+  try {
+    result = executor.Run(resolved);
+  } catch (const std::exception& e) {
+    result.failed = true;
+    result.failure = e.what();
+  }
+  std::signal(SIGINT, SIG_DFL);
+
+  const bool matrix = resolved.size() > 1 || !resolved.front().variant.empty();
+  const std::string table = FormatTable(result, matrix);
+  std::cout << table;
+  reporter.FileOnly("\n" + table);
+  if (!result.outputs.empty()) {
+    std::cout << "outputs:\n";
+    for (const auto& o : result.outputs) std::cout << "  " << o << "\n";
+  }
+  std::cout << "log: " << log_file.string() << "\n";
+  if (result.failed) {
+    reporter.Line("error: " + result.failure);
+    return 1;
+  }
+  if (result.waiting_for_shards) {
+    reporter.Line("shard " + std::to_string(ga.shard_index) + "/" +
+                  std::to_string(ga.shard_count) +
+                  " done; nodes downstream of sharded ones wait for the other shards. Run the "
+                  "remaining shards, then the same command without --shard to finish.");
+  }
+  return 0;
+}
+
+}  // namespace locforge::host

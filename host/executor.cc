@@ -1,0 +1,251 @@
+#include "executor.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <optional>
+#include <set>
+
+#include "locforge/error.h"
+
+namespace locforge::host {
+
+namespace {
+
+std::string Label(const std::string& variant, const std::string& node) {
+  return variant.empty() ? node : variant + "/" + node;
+}
+
+bool IsCancelled(const std::atomic<bool>* cancel) { return cancel && cancel->load(); }
+
+// Partial folders of whole-stage runs are private to one process; once the
+// node lock is held, any left over is stale (its process died).
+void RemoveStalePartials(const fs::path& dir) {
+  const std::string prefix = dir.filename().string() + ".partial-";
+  std::error_code ec;
+  for (fs::directory_iterator it(dir.parent_path(), ec), end; !ec && it != end; it.increment(ec))
+    if (it->path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(it->path(), ec);
+}
+
+fs::path Sibling(const fs::path& dir, const std::string& suffix) {
+  fs::path p = dir;
+  p += suffix;
+  return p;
+}
+
+// Lock files live in WORKSPACE/locks/, out of the way of the cache listing.
+fs::path LockFile(const fs::path& dir, const std::string& suffix) {
+  const fs::path locks = dir.parent_path().parent_path() / "locks";
+  fs::create_directories(locks);
+  return locks / (dir.filename().string() + suffix);
+}
+
+NodeReport NewReport(const std::string& variant, const ResolvedNode& node) {
+  NodeReport r;
+  r.variant = variant;
+  r.node = node.name;
+  r.stage = node.stage->id;
+  return r;
+}
+
+}  // namespace
+
+ExecResult Executor::Run(const std::vector<ResolvedGraph>& variants) {
+  ExecResult result;
+  for (const auto& graph : variants) {
+    std::map<std::string, std::string> keys;  // node -> cache key
+    std::set<std::string> unavailable;        // nodes without a complete folder
+    for (const auto& node : graph.nodes) {
+      keys[node.name] = CacheKey(node, keys);
+      bool blocked = result.failed || IsCancelled(options_.cancel);
+      for (const auto& in : node.inputs) blocked |= unavailable.count(in.node) > 0;
+      NodeReport report = NewReport(graph.variant, node);
+      if (blocked) {
+        report.status = "skipped";
+      } else {
+        report = RunNode(graph, node, keys[node.name], &result);
+      }
+      if (report.folder.empty()) {
+        unavailable.insert(node.name);
+      } else {
+        folders_[graph.variant + "/" + node.name] = report.folder;
+        workspace_.Link(graph.variant, node.name, report.folder);
+      }
+      result.nodes.push_back(report);
+    }
+    for (const auto& sink : graph.sinks)
+      if (!unavailable.count(sink))
+        result.outputs.push_back(workspace_.LinkPath(graph.variant, sink).string());
+  }
+  return result;
+}
+
+NodeReport Executor::RunNode(const ResolvedGraph& graph, const ResolvedNode& node,
+                             const std::string& key, ExecResult* result) {
+  NodeReport report = NewReport(graph.variant, node);
+  const std::string label = Label(graph.variant, node.name);
+  if (auto known = by_key_.find(key); known != by_key_.end()) {
+    // The same node (same key) in an earlier variant of this run.
+    report.status = known->second.folder.empty() ? "skipped" : "cached";
+    report.folder = known->second.folder.string();
+    return report;
+  }
+  const fs::path dir = workspace_.NodeDir(node.name, key);
+  Done done;
+  if (!options_.force && Workspace::IsComplete(dir)) {
+    done = {"cached", dir};
+    reporter_.FileOnly(label + ": cached in " + dir.string());
+  } else {
+    done = Compute(label, graph, node, key, dir, &report, result);
+  }
+  by_key_[key] = done;
+  report.status = done.status;
+  report.folder = done.folder.string();
+  return report;
+}
+
+std::vector<runtime::InputArtifact> Executor::Inputs(const ResolvedGraph& graph,
+                                                     const ResolvedNode& node) {
+  std::vector<runtime::InputArtifact> out;
+  for (const auto& in : node.inputs)
+    out.push_back({in.port, in.artifact_type, folders_.at(graph.variant + "/" + in.node)});
+  return out;
+}
+
+Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& graph,
+                                 const ResolvedNode& node, const std::string& key,
+                                 const fs::path& dir, NodeReport* report, ExecResult* result) {
+  const bool per_item = node.stage->per_item();
+  std::optional<FileLock> node_lock, shard_lock;
+  fs::path partial;
+  const auto inputs = Inputs(graph, node);
+  try {
+    if (per_item && options_.shard_count > 1) {
+      // Shards of one node run side by side; an unsharded run waits for them.
+      node_lock.emplace(LockFile(dir, ".lock"), FileLock::kShared);
+      shard_lock.emplace(LockFile(dir, ".shard-" + std::to_string(options_.shard_index) + "-of-" +
+                                          std::to_string(options_.shard_count) + ".lock"),
+                         FileLock::kExclusive);
+    } else {
+      node_lock.emplace(LockFile(dir, ".lock"), FileLock::kExclusive);
+    }
+    if (!options_.force && Workspace::IsComplete(dir)) return {"cached", dir};  // done meanwhile
+    if (per_item) {
+      // Persistent, so a killed run resumes from the runtime's journals.
+      partial = Sibling(dir, ".partial");
+      if (options_.force) fs::remove_all(partial);
+    } else {
+      RemoveStalePartials(dir);
+      partial = Sibling(dir, ".partial-" + std::to_string(::getpid()));
+    }
+  } catch (const std::exception& e) {
+    result->failed = true;
+    result->failure = "node '" + label + "' (" + node.stage->id + "): " + e.what();
+    return {"failed", {}};
+  }
+
+  runtime::RunOptions run;
+  run.workspace = workspace_.root();
+  run.output_dir = partial;
+  run.inputs = inputs;
+  run.threads = options_.threads;
+  run.shard_index = per_item ? options_.shard_index : 0;
+  run.shard_count = per_item ? options_.shard_count : 1;
+  run.cancel = options_.cancel;
+  run.log = [this, label](int level, const std::string& m) { reporter_.Log(label, level, m); };
+  run.progress = [this, label](uint64_t done, uint64_t total, const std::string& what) {
+    reporter_.Progress(label, done, total, what);
+  };
+
+  reporter_.NodeStarted(label, node.stage->id);
+  const auto start = std::chrono::steady_clock::now();
+  std::string status;
+  try {
+    runtime::StageInstance instance(*node.stage, node.params);
+    const runtime::RunResult r = instance.Run(run);
+    report->items = r.items_total;
+    report->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (!r.complete) {
+      result->waiting_for_shards = true;
+      reporter_.NodeFinished(label, "shard " + std::to_string(options_.shard_index) + "/" +
+                                        std::to_string(options_.shard_count) + " done",
+                             r.items_total, report->seconds);
+      return {"partial", {}};
+    }
+    Publish(partial, dir, Manifest(node, key, inputs, report->seconds));
+    status = r.items_resumed > 0 ? "resumed" : "ran";
+    reporter_.NodeFinished(label, status, r.items_total, report->seconds);
+    return {status, dir};
+  } catch (const std::exception& e) {
+    report->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const bool interrupted = IsCancelled(options_.cancel);
+    std::error_code ec;
+    if (!per_item) fs::remove_all(partial, ec);  // nothing to resume in a whole-stage run
+    result->failed = true;
+    result->failure = "node '" + label + "' (" + node.stage->id + ") " +
+                      (interrupted ? "interrupted" : std::string("failed: ") + e.what()) +
+                      (per_item ? "; finished items are kept, run again to resume" : "");
+    reporter_.NodeFinished(label, interrupted ? "interrupted" : "failed", report->items,
+                           report->seconds);
+    return {"failed", {}};
+  }
+}
+
+std::string Executor::Manifest(const ResolvedNode& node, const std::string& key,
+                               const std::vector<runtime::InputArtifact>& inputs,
+                               double seconds) const {
+  const LfPluginInfo* plugin = node.stage->plugin->info;
+  std::string j = "{\n";
+  j += "  \"stage\": " + JsonString(node.stage->id) + ",\n";
+  j += "  \"plugin\": " + JsonString(plugin->name ? plugin->name : "") + ",\n";
+  j += "  \"plugin_version\": " + JsonString(plugin->version ? plugin->version : "") + ",\n";
+  j += "  \"plugin_file\": " + JsonString(node.stage->plugin->file.string()) + ",\n";
+  j += "  \"key\": " + JsonString(key) + ",\n";
+  j += "  \"params\": {";
+  bool first = true;
+  for (const auto& [name, value] : node.params) {
+    j += std::string(first ? "\n" : ",\n") + "    " + JsonString(name) + ": " + JsonString(value);
+    first = false;
+  }
+  j += "\n  },\n  \"inputs\": [";
+  first = true;
+  for (const auto& in : inputs) {
+    j += std::string(first ? "\n" : ",\n") + "    {\"port\": " + JsonString(in.port) +
+         ", \"type\": " + JsonString(in.artifact_type) + ", \"path\": " +
+         JsonString(in.path.string()) + "}";
+    first = false;
+  }
+  char secs[32];
+  std::snprintf(secs, sizeof(secs), "%.3f", seconds);
+  j += "\n  ],\n  \"finished\": " + JsonString(UtcNow()) + ",\n  \"seconds\": " + secs + "\n}\n";
+  return j;
+}
+
+std::string FormatTable(const ExecResult& result, bool with_variants) {
+  std::vector<std::vector<std::string>> rows;
+  rows.push_back({"node", "stage", "status", "items", "seconds"});
+  if (with_variants) rows.back().insert(rows.back().begin(), "variant");
+  for (const auto& n : result.nodes) {
+    char secs[32];
+    std::snprintf(secs, sizeof(secs), "%.2f", n.seconds);
+    rows.push_back({n.node, n.stage, n.status, n.items ? std::to_string(n.items) : "-", secs});
+    if (with_variants) rows.back().insert(rows.back().begin(), n.variant);
+  }
+  std::vector<size_t> width(rows.front().size(), 0);
+  for (const auto& row : rows)
+    for (size_t c = 0; c < row.size(); ++c) width[c] = std::max(width[c], row[c].size());
+  std::string out;
+  for (const auto& row : rows) {
+    std::string line;
+    for (size_t c = 0; c < row.size(); ++c) {
+      const bool numeric = c + 2 >= row.size();
+      const std::string pad(width[c] - row[c].size(), ' ');
+      line += (c ? "  " : "") + (numeric ? pad + row[c] : row[c] + (c + 1 < row.size() ? pad : ""));
+    }
+    out += line + "\n";
+  }
+  return out;
+}
+
+}  // namespace locforge::host

@@ -1,0 +1,515 @@
+#include "graph.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <functional>
+#include <set>
+#include <sstream>
+
+#include "locforge/fs.h"
+#include "locforge/params.h"
+
+namespace locforge::host {
+
+std::string SourceLocation::ToString() const {
+  if (line <= 0) return file;
+  return file + ":" + std::to_string(line) + ":" + std::to_string(column);
+}
+
+bool ParseOverride(const std::string& text, Override* out) {
+  const size_t eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) return false;
+  out->key = text.substr(0, eq);
+  out->value = text.substr(eq + 1);
+  return true;
+}
+
+namespace {
+
+bool IsIdentifier(const std::string& s, bool allow_dash) {
+  if (s.empty()) return false;
+  for (char c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || (allow_dash && c == '-')))
+      return false;
+  return true;
+}
+
+std::string Hint(const std::string& word, const std::vector<std::string>& candidates) {
+  const std::string best = DidYouMean(word, candidates);
+  return best.empty() ? "" : " (did you mean '" + best + "'?)";
+}
+
+std::string JoinNames(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out.empty() ? "none" : out;
+}
+
+// A value as written, before substitution, with its provenance.
+struct RawValue {
+  Value value;
+  SourceLocation where;
+  bool from_command_line = false;
+};
+
+class GraphParser {
+ public:
+  // `file` is absolute (it anchors relative paths); `display` names it in diagnostics.
+  GraphParser(const fs::path& file, const std::string& display, const fs::path& cwd,
+              Diagnostics* errors)
+      : file_(file), display_(display), dir_(file.parent_path()), cwd_(cwd), errors_(errors) {}
+
+  bool Parse(const std::string& text, const std::vector<Override>& sets, Graph* graph);
+
+ private:
+  SourceLocation At(const YAML::Node& n) const { return At(n.Mark()); }
+  SourceLocation At(const YAML::Mark& m) const {
+    return {display_, m.line + 1, m.column + 1};
+  }
+  void Fail(const SourceLocation& where, const std::string& message) {
+    errors_->push_back({where, message});
+  }
+
+  void CheckDuplicateKeys(const YAML::Node& node);
+  bool ReadRaw(const YAML::Node& node, const std::string& what, RawValue* out);
+  void ReadVars(const YAML::Node& node);
+  void ReadMatrix(const YAML::Node& node);
+  void ApplyVarOverrides(const std::vector<Override>& sets);
+  std::vector<GraphVariant> ExpandMatrix();
+  void ReadNodes(const YAML::Node& nodes, GraphVariant* variant);
+  void ApplyNodeOverrides(GraphVariant* variant);
+
+  // Substitution for the current variant. `from_cli` is set when a --set
+  // value went into the result.
+  Value Substitute(const Value& raw, const SourceLocation& where, bool* from_cli);
+  bool SubstituteScalar(const std::string& s, const SourceLocation& where, Value* out,
+                        bool* from_cli);
+  bool LookupVar(const std::string& name, const SourceLocation& where, Value* out,
+                 bool* from_cli);
+  std::vector<std::string> KnownNames() const;
+
+  fs::path file_;
+  std::string display_;
+  fs::path dir_, cwd_;
+  Diagnostics* errors_;
+  std::map<std::string, RawValue> vars_;
+  std::vector<std::pair<std::string, std::vector<std::string>>> matrix_;
+  std::map<std::string, SourceLocation> matrix_where_;
+  std::vector<Override> node_overrides_;
+  // Per-variant state.
+  std::map<std::string, std::string> matrix_env_;
+  std::map<std::string, std::pair<Value, bool>> resolved_vars_;
+  std::set<std::string> resolving_;
+};
+
+void GraphParser::CheckDuplicateKeys(const YAML::Node& node) {
+  if (node.IsMap()) {
+    std::set<std::string> seen;
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const std::string key = it->first.IsScalar() ? it->first.Scalar() : "";
+      if (!seen.insert(key).second)
+        Fail(At(it->first), "duplicate key '" + key + "' (expected each key once per mapping)");
+      CheckDuplicateKeys(it->second);
+    }
+  } else if (node.IsSequence()) {
+    for (const auto& child : node) CheckDuplicateKeys(child);
+  }
+}
+
+bool GraphParser::ReadRaw(const YAML::Node& node, const std::string& what, RawValue* out) {
+  out->where = At(node);
+  out->value = Value{};
+  if (node.IsScalar()) {
+    out->value.items.push_back(node.Scalar());
+    return true;
+  }
+  if (node.IsSequence()) {
+    out->value.is_list = true;
+    for (const auto& item : node) {
+      if (!item.IsScalar()) {
+        Fail(At(item), what + ": expected a scalar list element");
+        return false;
+      }
+      out->value.items.push_back(item.Scalar());
+    }
+    return true;
+  }
+  Fail(out->where, what + ": expected a scalar or a list of scalars");
+  return false;
+}
+
+void GraphParser::ReadVars(const YAML::Node& node) {
+  if (!node.IsMap()) return Fail(At(node), "'vars' must be a mapping of name: value");
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const std::string name = it->first.Scalar();
+    if (!IsIdentifier(name, false)) {
+      Fail(At(it->first), "variable name '" + name + "' must be letters, digits and '_'");
+      continue;
+    }
+    RawValue raw;
+    if (ReadRaw(it->second, "variable '" + name + "'", &raw)) vars_[name] = raw;
+  }
+}
+
+void GraphParser::ReadMatrix(const YAML::Node& node) {
+  if (!node.IsMap()) return Fail(At(node), "'matrix' must be a mapping of name: [values]");
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const std::string name = it->first.Scalar();
+    if (!IsIdentifier(name, false)) {
+      Fail(At(it->first), "matrix key '" + name + "' must be letters, digits and '_'");
+      continue;
+    }
+    if (vars_.count(name)) {
+      Fail(At(it->first), "matrix key '" + name + "' is also a variable (expected distinct names)");
+      continue;
+    }
+    RawValue raw;
+    if (!ReadRaw(it->second, "matrix key '" + name + "'", &raw)) continue;
+    if (!raw.value.is_list || raw.value.items.empty()) {
+      Fail(raw.where, "matrix key '" + name + "': expected a non-empty list of values");
+      continue;
+    }
+    matrix_.emplace_back(name, raw.value.items);
+    matrix_where_[name] = At(it->first);
+  }
+}
+
+Value ParseCommandLineValue(const std::string& text) {
+  Value v;
+  if (!text.empty() && text.front() == '[') {
+    try {
+      const YAML::Node node = YAML::Load(text);
+      if (node.IsSequence()) {
+        v.is_list = true;
+        for (const auto& item : node) v.items.push_back(item.IsScalar() ? item.Scalar() : "");
+        return v;
+      }
+    } catch (const YAML::Exception&) {
+    }
+  }
+  v.items.push_back(text);
+  return v;
+}
+
+void GraphParser::ApplyVarOverrides(const std::vector<Override>& sets) {
+  for (const auto& set : sets) {
+    const SourceLocation where{"--set " + set.key + "=" + set.value};
+    if (set.key.find('.') != std::string::npos) {
+      node_overrides_.push_back(set);
+      continue;
+    }
+    if (vars_.count(set.key)) {
+      vars_[set.key] = RawValue{ParseCommandLineValue(set.value), where, true};
+      continue;
+    }
+    auto m = std::find_if(matrix_.begin(), matrix_.end(),
+                          [&](const auto& kv) { return kv.first == set.key; });
+    if (m != matrix_.end()) {
+      m->second = {set.value};  // pins the matrix to this value
+      continue;
+    }
+    Fail(where, "unknown variable '" + set.key + "'" + Hint(set.key, KnownNames()) +
+                    "; expected one of: " + JoinNames(KnownNames()) +
+                    " (or node.param to set one node's parameter)");
+  }
+}
+
+std::vector<std::string> GraphParser::KnownNames() const {
+  std::vector<std::string> names;
+  for (const auto& [name, raw] : vars_) names.push_back(name);
+  for (const auto& [name, values] : matrix_) names.push_back(name);
+  return names;
+}
+
+std::string SafeVariantPart(const std::string& s) {
+  std::string out;
+  for (char c : s)
+    out += (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')
+               ? c
+               : '_';
+  return out;
+}
+
+std::vector<GraphVariant> GraphParser::ExpandMatrix() {
+  std::vector<GraphVariant> variants(1);
+  for (const auto& [key, values] : matrix_) {
+    std::vector<GraphVariant> next;
+    for (const auto& v : variants)
+      for (const auto& value : values) {
+        GraphVariant g = v;
+        g.matrix_values.emplace_back(key, value);
+        g.name += (g.name.empty() ? "" : ",") + key + "=" + SafeVariantPart(value);
+        next.push_back(std::move(g));
+      }
+    variants = std::move(next);
+  }
+  return variants;
+}
+
+bool GraphParser::LookupVar(const std::string& name, const SourceLocation& where, Value* out,
+                            bool* from_cli) {
+  if (auto m = matrix_env_.find(name); m != matrix_env_.end()) {
+    *out = Value{{m->second}, false};
+    return true;
+  }
+  if (auto r = resolved_vars_.find(name); r != resolved_vars_.end()) {
+    *out = r->second.first;
+    *from_cli |= r->second.second;
+    return true;
+  }
+  auto v = vars_.find(name);
+  if (v == vars_.end()) {
+    Fail(where, "unknown variable '" + name + "'" + Hint(name, KnownNames()) +
+                    "; expected one of: " + JoinNames(KnownNames()));
+    return false;
+  }
+  if (!resolving_.insert(name).second) {
+    Fail(v->second.where, "variable '" + name + "' refers to itself");
+    return false;
+  }
+  bool cli = v->second.from_command_line;
+  const size_t before = errors_->size();
+  Value value = Substitute(v->second.value, v->second.where, &cli);
+  resolving_.erase(name);
+  if (errors_->size() != before) return false;
+  resolved_vars_[name] = {value, cli};
+  *out = value;
+  *from_cli |= cli;
+  return true;
+}
+
+bool GraphParser::SubstituteScalar(const std::string& s, const SourceLocation& where, Value* out,
+                                   bool* from_cli) {
+  // A scalar that is exactly ${x} takes x's value as is (a list stays a list).
+  if (s.size() > 3 && s.compare(0, 2, "${") == 0 && s.back() == '}' &&
+      s.find('}') == s.size() - 1)
+    return LookupVar(s.substr(2, s.size() - 3), where, out, from_cli);
+  std::string result;
+  size_t pos = 0;
+  while (true) {
+    const size_t start = s.find("${", pos);
+    if (start == std::string::npos) break;
+    const size_t end = s.find('}', start);
+    if (end == std::string::npos) {
+      Fail(where, "unterminated '${' in '" + s + "' (expected ${name})");
+      return false;
+    }
+    result += s.substr(pos, start - pos);
+    Value v;
+    if (!LookupVar(s.substr(start + 2, end - start - 2), where, &v, from_cli)) return false;
+    if (v.is_list) {
+      Fail(where, "variable '" + s.substr(start + 2, end - start - 2) +
+                      "' is a list; expected a scalar inside '" + s + "'");
+      return false;
+    }
+    result += v.scalar();
+    pos = end + 1;
+  }
+  result += s.substr(pos);
+  *out = Value{{result}, false};
+  return true;
+}
+
+Value GraphParser::Substitute(const Value& raw, const SourceLocation& where, bool* from_cli) {
+  Value out;
+  out.is_list = raw.is_list;
+  for (const auto& item : raw.items) {
+    Value v;
+    if (!SubstituteScalar(item, where, &v, from_cli)) continue;
+    if (v.is_list && !raw.is_list) return v;  // "${list}" as the whole value
+    out.items.insert(out.items.end(), v.items.begin(), v.items.end());
+  }
+  return out;
+}
+
+void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
+  static const std::vector<std::string> kNodeKeys = {"stage", "params", "inputs"};
+  for (auto it = nodes.begin(); it != nodes.end(); ++it) {
+    NodeSpec node;
+    node.name = it->first.Scalar();
+    node.where = At(it->first);
+    const YAML::Node body = it->second;
+    if (!IsIdentifier(node.name, true)) {
+      Fail(node.where, "node name '" + node.name + "' must be letters, digits, '_' and '-'");
+      continue;
+    }
+    if (!body.IsMap()) {
+      Fail(At(body), "node '" + node.name + "': expected a mapping with 'stage', 'params', 'inputs'");
+      continue;
+    }
+    for (auto k = body.begin(); k != body.end(); ++k) {
+      const std::string key = k->first.Scalar();
+      if (std::find(kNodeKeys.begin(), kNodeKeys.end(), key) == kNodeKeys.end())
+        Fail(At(k->first), "node '" + node.name + "': unknown key '" + key + "'" +
+                               Hint(key, kNodeKeys) + "; expected stage, params or inputs");
+    }
+    const YAML::Node stage = body["stage"];
+    if (!stage || !stage.IsScalar()) {
+      Fail(node.where, "node '" + node.name + "': 'stage: KIND/NAME' is required");
+    } else {
+      node.stage_where = At(stage);
+      bool cli = false;
+      node.stage = Substitute(Value{{stage.Scalar()}, false}, node.stage_where, &cli).scalar();
+    }
+    if (const YAML::Node params = body["params"]) {
+      if (!params.IsMap() && !params.IsNull()) {
+        Fail(At(params), "node '" + node.name + "': 'params' must be a mapping");
+      } else if (params.IsMap()) {
+        for (auto p = params.begin(); p != params.end(); ++p) {
+          RawValue raw;
+          if (!ReadRaw(p->second, "parameter '" + p->first.Scalar() + "'", &raw)) continue;
+          ParamValue pv;
+          pv.key_where = At(p->first);
+          pv.value_where = raw.where;
+          bool cli = false;
+          pv.value = Substitute(raw.value, raw.where, &cli);
+          pv.base_dir = cli ? cwd_ : dir_;
+          node.params[p->first.Scalar()] = pv;
+        }
+      }
+    }
+    if (const YAML::Node inputs = body["inputs"]) {
+      if (!inputs.IsMap() && !inputs.IsNull()) {
+        Fail(At(inputs), "node '" + node.name + "': 'inputs' must be a mapping port: node.port");
+      } else if (inputs.IsMap()) {
+        for (auto in = inputs.begin(); in != inputs.end(); ++in) {
+          RawValue raw;
+          if (!ReadRaw(in->second, "input '" + in->first.Scalar() + "'", &raw)) continue;
+          InputSpec spec;
+          spec.where = At(in->first);
+          bool cli = false;
+          const Value v = Substitute(raw.value, raw.where, &cli);
+          spec.is_list = v.is_list;
+          for (const auto& text : v.items) {
+            Wire w;
+            w.where = raw.where;
+            const size_t dot = text.find('.');
+            w.node = text.substr(0, dot);
+            if (dot != std::string::npos) w.port = text.substr(dot + 1);
+            spec.wires.push_back(w);
+          }
+          node.inputs[in->first.Scalar()] = spec;
+        }
+      }
+    }
+    variant->nodes.push_back(std::move(node));
+  }
+}
+
+void GraphParser::ApplyNodeOverrides(GraphVariant* variant) {
+  for (const auto& set : node_overrides_) {
+    const SourceLocation where{"--set " + set.key + "=" + set.value};
+    const size_t dot = set.key.find('.');
+    const std::string node_name = set.key.substr(0, dot);
+    const std::string param = set.key.substr(dot + 1);
+    auto node = std::find_if(variant->nodes.begin(), variant->nodes.end(),
+                             [&](const NodeSpec& n) { return n.name == node_name; });
+    if (node == variant->nodes.end()) {
+      std::vector<std::string> names;
+      for (const auto& n : variant->nodes) names.push_back(n.name);
+      Fail(where, "unknown node '" + node_name + "'" + Hint(node_name, names) +
+                      "; expected one of: " + JoinNames(names));
+      continue;
+    }
+    ParamValue pv;
+    pv.key_where = pv.value_where = where;
+    bool cli = true;
+    pv.value = Substitute(ParseCommandLineValue(set.value), where, &cli);
+    pv.base_dir = cwd_;
+    node->params[param] = pv;
+  }
+}
+
+bool GraphParser::Parse(const std::string& text, const std::vector<Override>& sets, Graph* graph) {
+  const size_t before = errors_->size();
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    Fail(At(e.mark), "YAML syntax: " + e.msg);
+    return false;
+  }
+  if (!root.IsMap()) {
+    Fail({display_, 1, 1}, "expected a mapping with 'locforge: 1' and 'nodes:'");
+    return false;
+  }
+  CheckDuplicateKeys(root);
+  static const std::vector<std::string> kTopKeys = {"locforge", "description", "plugin_paths",
+                                                    "vars", "matrix", "nodes"};
+  for (auto it = root.begin(); it != root.end(); ++it) {
+    const std::string key = it->first.Scalar();
+    if (std::find(kTopKeys.begin(), kTopKeys.end(), key) == kTopKeys.end())
+      Fail(At(it->first), "unknown top-level key '" + key + "'" + Hint(key, kTopKeys) +
+                              "; expected one of: " + JoinNames(kTopKeys));
+  }
+  const YAML::Node version = root["locforge"];
+  if (!version) {
+    Fail({display_, 1, 1}, "missing 'locforge: 1' (the graph format version)");
+  } else if (!version.IsScalar() || version.Scalar() != "1") {
+    Fail(At(version), "unsupported graph format version; expected 'locforge: 1'");
+  }
+  graph->file = file_;
+  if (const YAML::Node d = root["description"]; d && d.IsScalar()) graph->description = d.Scalar();
+  if (const YAML::Node vars = root["vars"]) ReadVars(vars);
+  if (const YAML::Node matrix = root["matrix"]) ReadMatrix(matrix);
+  ApplyVarOverrides(sets);
+  if (const YAML::Node paths = root["plugin_paths"]) {
+    RawValue raw;
+    if (ReadRaw(paths, "plugin_paths", &raw)) {
+      bool cli = false;
+      for (const auto& p : Substitute(raw.value, raw.where, &cli).items)
+        graph->plugin_paths.emplace_back((dir_ / p).lexically_normal(), raw.where);
+    }
+  }
+  const YAML::Node nodes = root["nodes"];
+  if (!nodes || !nodes.IsMap() || nodes.size() == 0) {
+    Fail(nodes ? At(nodes) : SourceLocation{display_, 1, 1},
+         "expected 'nodes:' with at least one node");
+  } else {
+    for (GraphVariant variant : ExpandMatrix()) {
+      matrix_env_.clear();
+      resolved_vars_.clear();
+      for (const auto& [key, value] : variant.matrix_values) matrix_env_[key] = value;
+      ReadNodes(nodes, &variant);
+      ApplyNodeOverrides(&variant);
+      graph->variants.push_back(std::move(variant));
+    }
+  }
+  *errors_ = Deduplicate(*errors_);
+  return errors_->size() == before;
+}
+
+}  // namespace
+
+bool ParseGraph(const std::string& text, const fs::path& file, const std::vector<Override>& sets,
+                const fs::path& cwd, Graph* graph, Diagnostics* errors) {
+  return GraphParser(fs::absolute(file).lexically_normal(), file.string(), cwd, errors)
+      .Parse(text, sets, graph);
+}
+
+bool LoadGraph(const fs::path& file, const std::vector<Override>& sets, Graph* graph,
+               Diagnostics* errors) {
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) {
+    errors->push_back({{file.string()}, "graph file not found (expected a YAML file)"});
+    return false;
+  }
+  std::string text;
+  try {
+    text = ReadFile(file);
+  } catch (const std::exception& e) {
+    errors->push_back({{file.string()}, e.what()});
+    return false;
+  }
+  return ParseGraph(text, file, sets, fs::current_path(), graph, errors);
+}
+
+Diagnostics Deduplicate(const Diagnostics& errors) {
+  Diagnostics out;
+  std::set<std::string> seen;
+  for (const auto& d : errors)
+    if (seen.insert(d.ToString()).second) out.push_back(d);
+  return out;
+}
+
+}  // namespace locforge::host

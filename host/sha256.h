@@ -1,0 +1,31 @@
+// SHA-256 (FIPS 180-4), used for the cache keys of graph nodes.
+#ifndef LOCFORGE_HOST_SHA256_H_
+#define LOCFORGE_HOST_SHA256_H_
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+namespace locforge::host {
+
+class Sha256 {
+ public:
+  Sha256();
+  void Update(std::string_view data);
+  // Lower-case hex of the 32-byte digest. The object is spent afterwards.
+  std::string HexDigest();
+
+ private:
+  void Block(const uint8_t* p);
+  std::array<uint32_t, 8> h_;
+  std::array<uint8_t, 64> buffer_{};
+  size_t buffered_ = 0;
+  uint64_t total_bytes_ = 0;
+};
+
+std::string Sha256Hex(std::string_view data);
+
+}  // namespace locforge::host
+
+#endif  // LOCFORGE_HOST_SHA256_H_

@@ -1,0 +1,182 @@
+#include "workspace.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <ctime>
+#include <vector>
+
+#include "locforge/error.h"
+#include "locforge/fs.h"
+#include "locforge/version.h"
+#include "sha256.h"
+
+namespace locforge::host {
+
+namespace {
+
+std::string FileStamp(const fs::path& p) {
+  std::error_code ec;
+  const auto size = fs::file_size(p, ec);
+  const auto mtime = fs::last_write_time(p, ec);
+  return std::to_string(ec ? 0 : size) + "@" +
+         std::to_string(mtime.time_since_epoch().count());
+}
+
+}  // namespace
+
+std::string PathStamp(const fs::path& path) {
+  std::error_code ec;
+  const fs::path abs = fs::absolute(path, ec).lexically_normal();
+  std::string out = abs.string();
+  if (fs::is_regular_file(abs, ec)) return out + " file " + FileStamp(abs);
+  if (!fs::is_directory(abs, ec)) return out + " missing";
+  // Entries up to depth 2, sorted so the stamp does not depend on readdir order.
+  std::vector<std::string> entries;
+  constexpr size_t kMaxEntries = 10000;
+  auto it = fs::recursive_directory_iterator(abs, fs::directory_options::skip_permission_denied, ec);
+  for (; !ec && it != fs::recursive_directory_iterator() && entries.size() < kMaxEntries;
+       it.increment(ec)) {
+    if (it.depth() >= 1) it.disable_recursion_pending();
+    const fs::path rel = it->path().lexically_relative(abs);
+    entries.push_back(rel.string() + " " +
+                      (it->is_directory(ec) ? std::string("dir") : FileStamp(it->path())));
+  }
+  std::sort(entries.begin(), entries.end());
+  out += " dir";
+  for (const auto& e : entries) out += "\n  " + e;
+  return out;
+}
+
+std::string CacheKeyText(const ResolvedNode& node,
+                         const std::map<std::string, std::string>& input_keys) {
+  const LfPluginInfo* plugin = node.stage->plugin->info;
+  std::string text = "locforge-cache-key 1\n";
+  text += "stage " + node.stage->id + "\n";
+  text += "plugin_version " + std::string(plugin->version ? plugin->version : "") + "\n";
+  text += "sdk_version " + std::string(plugin->sdk_version ? plugin->sdk_version : "") + "\n";
+  for (const auto& decl : node.stage->params) {
+    if (decl.flags & LF_PARAM_NO_CACHE_KEY) continue;
+    auto it = node.params.find(decl.name);
+    const std::string value = it == node.params.end() ? decl.default_value : it->second;
+    text += "param " + decl.name + "=" + value + "\n";
+    if (decl.type == LF_PARAM_PATH && !value.empty())
+      text += "stamp " + decl.name + "=" + PathStamp(value) + "\n";
+  }
+  for (const auto& in : node.inputs) {
+    auto key = input_keys.find(in.node);
+    text += "input " + in.port + "=" + (key == input_keys.end() ? "?" : key->second) + "\n";
+  }
+  return text;
+}
+
+std::string CacheKey(const ResolvedNode& node,
+                     const std::map<std::string, std::string>& input_keys) {
+  return Sha256Hex(CacheKeyText(node, input_keys));
+}
+
+Workspace::Workspace(const fs::path& root) : root_(fs::absolute(root).lexically_normal()) {
+  for (const char* sub : {"cache", "nodes", "logs"}) fs::create_directories(root_ / sub);
+}
+
+fs::path Workspace::NodeDir(const std::string& node, const std::string& key) const {
+  return root_ / "cache" / (node + "-" + key.substr(0, 16));
+}
+
+bool Workspace::IsComplete(const fs::path& node_dir) {
+  std::error_code ec;
+  return fs::is_regular_file(node_dir / kCompleteMarker, ec);
+}
+
+fs::path Workspace::LinkPath(const std::string& variant, const std::string& node) const {
+  if (variant.empty()) return root_ / "nodes" / node;
+  return root_ / "variants" / variant / "nodes" / node;
+}
+
+void Workspace::Link(const std::string& variant, const std::string& node,
+                     const fs::path& node_dir) const {
+  const fs::path link = LinkPath(variant, node);
+  fs::create_directories(link.parent_path());
+  const fs::path target = node_dir.lexically_relative(link.parent_path());
+  std::error_code ec;
+  if (fs::is_symlink(link, ec) && fs::read_symlink(link, ec) == target) return;
+  const fs::path temp = TempSibling(link);
+  fs::create_directory_symlink(target, temp);
+  fs::rename(temp, link);  // atomic replacement of the old link
+}
+
+fs::path Workspace::NewLogFile() const {
+  const std::string stamp = UtcNow(true);
+  fs::path file = root_ / "logs" / ("run-" + stamp + ".log");
+  for (int i = 1; fs::exists(file); ++i)
+    file = root_ / "logs" / ("run-" + stamp + "-" + std::to_string(i) + ".log");
+  return file;
+}
+
+void Publish(const fs::path& partial_dir, const fs::path& node_dir, const std::string& manifest) {
+  WriteFileAtomic(partial_dir / kCompleteMarker, manifest);
+  std::error_code ec;
+  fs::path old;
+  if (fs::exists(node_dir, ec)) {
+    old = node_dir;
+    old += ".old-" + std::to_string(::getpid());
+    fs::remove_all(old, ec);
+    fs::rename(node_dir, old);
+  }
+  fs::rename(partial_dir, node_dir);
+  if (!old.empty()) fs::remove_all(old, ec);
+}
+
+FileLock::FileLock(const fs::path& file, Mode mode) {
+  fd_ = ::open(file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw Error("cannot open lock file " + file.string() + ": " + std::strerror(errno));
+  int rc;
+  do {
+    rc = ::flock(fd_, mode == kShared ? LOCK_SH : LOCK_EX);
+  } while (rc != 0 && errno == EINTR);
+  if (rc != 0) {
+    ::close(fd_);
+    throw Error("cannot lock " + file.string() + ": " + std::strerror(errno));
+  }
+}
+
+FileLock::~FileLock() {
+  if (fd_ >= 0) ::close(fd_);  // closing releases the lock
+}
+
+std::string JsonString(const std::string& s) {
+  std::string out = "\"";
+  for (unsigned char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (c < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof(buf), "\\u%04x", c);
+          out += buf;
+        } else {
+          out += static_cast<char>(c);
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string UtcNow(bool compact) {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), compact ? "%Y%m%dT%H%M%SZ" : "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+}  // namespace locforge::host
