@@ -37,9 +37,12 @@ void Publish(const fs::path& temp, const fs::path& path) {
   std::error_code ec;
   fs::rename(temp, path, ec);
   if (ec) {
+    const std::string why = ec.message();
     fs::remove(temp, ec);
-    throw Error("cannot write " + path.string() + ": " + ec.message());
+    throw Error("cannot write " + path.string() + ": " + why);
   }
+  // The rename itself is durable only once the folder is synced.
+  FsyncPath(path.has_parent_path() ? path.parent_path() : fs::path("."));
 }
 
 }  // namespace
@@ -66,6 +69,7 @@ AtomicFile::~AtomicFile() {
 }
 
 void AtomicFile::Commit() {
+  if (committed_) return;
   out_.flush();
   const bool ok = static_cast<bool>(out_);
   out_.close();
@@ -87,6 +91,47 @@ std::string ReadFile(const fs::path& path) {
   return ss.str();
 }
 
+namespace {
+
+// Like fs::canonical, but also follows links whose target does not exist and
+// keeps the missing tail of the path. `path` is absolute. Throws
+// fs::filesystem_error on a link loop or an unreadable component.
+fs::path ResolveSymlinks(const fs::path& path, int* hops) {
+  fs::path out = path.root_path();
+  for (const auto& part : path.relative_path()) {
+    if (part.empty() || part == ".") continue;
+    if (part == "..") {
+      out = out.parent_path();  // `out` holds no links, so this is the real parent
+      continue;
+    }
+    const fs::path next = out / part;
+    std::error_code ec;
+    const fs::file_status st = fs::symlink_status(next, ec);
+    if (st.type() == fs::file_type::not_found) {
+      out = next;
+    } else if (ec) {
+      throw fs::filesystem_error("cannot inspect", next, ec);
+    } else if (fs::is_symlink(st)) {
+      if (++*hops > 40)
+        throw fs::filesystem_error("too many symbolic links", next,
+                                   std::make_error_code(std::errc::too_many_symbolic_link_levels));
+      fs::path target = fs::read_symlink(next);
+      if (target.is_relative()) target = out / target;
+      out = ResolveSymlinks(target, hops);
+    } else {
+      out = next;
+    }
+  }
+  return out;
+}
+
+fs::path ResolveSymlinks(const fs::path& path) {
+  int hops = 0;
+  return ResolveSymlinks(path, &hops);
+}
+
+}  // namespace
+
 fs::path SafeJoin(const fs::path& root, const std::string& relative, const std::string& origin) {
   const std::string where = origin.empty() ? root.string() : origin;
   if (relative.empty()) throw InputError(where + ": empty path");
@@ -107,19 +152,25 @@ fs::path SafeJoin(const fs::path& root, const std::string& relative, const std::
     }
   }
   const fs::path joined = (root / rel).lexically_normal();
-  // Then resolve symlinks of what exists: a link must not lead outside either.
-  std::error_code ec;
-  const fs::path real_root = fs::weakly_canonical(root, ec);
-  const fs::path real = fs::weakly_canonical(joined, ec);
-  if (!ec && !real_root.empty()) {
-    auto p = real.begin();
-    for (auto r = real_root.begin(); r != real_root.end(); ++r) {
-      if (r->empty()) continue;  // trailing separator
-      if (p == real.end() || *p != *r)
-        throw InputError(where + ": path '" + relative + "' resolves outside the dataset root " +
-                         root.string() + " (through a symbolic link)");
-      ++p;
-    }
+  // Then resolve symlinks, dangling ones included (an output written through
+  // a dangling link lands at its target): a link must not lead outside either.
+  // Fail closed: a path that cannot be resolved (a link loop, no permission)
+  // is refused rather than trusted.
+  fs::path real_root, real;
+  try {
+    real_root = ResolveSymlinks(fs::absolute(root));
+    real = ResolveSymlinks(fs::absolute(joined));
+  } catch (const fs::filesystem_error& e) {
+    throw InputError(where + ": cannot resolve path '" + relative + "' under " + root.string() +
+                     ": " + e.code().message());
+  }
+  auto p = real.begin();
+  for (auto r = real_root.begin(); r != real_root.end(); ++r) {
+    if (r->empty()) continue;  // trailing separator
+    if (p == real.end() || *p != *r)
+      throw InputError(where + ": path '" + relative + "' resolves outside the dataset root " +
+                       root.string() + " (through a symbolic link)");
+    ++p;
   }
   return joined;
 }
