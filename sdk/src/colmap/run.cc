@@ -1,0 +1,218 @@
+#include "locforge/colmap/run.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "locforge/error.h"
+
+extern char** environ;
+
+namespace locforge::colmap {
+
+namespace fs = std::filesystem;
+
+bool RunOptions::Check(std::string* why) const {
+  if (log_file.empty()) {
+    if (why) *why = "log_file must be set";
+    return false;
+  }
+  if (timeout_s < 0) {
+    if (why) *why = "timeout_s must be >= 0";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+bool IsExecutableFile(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
+}
+
+std::string Quote(const std::vector<std::string>& argv) {
+  std::string s;
+  for (const std::string& a : argv) {
+    if (!s.empty()) s += ' ';
+    s += a.find_first_of(" \t\"'") == std::string::npos ? a : "'" + a + "'";
+  }
+  return s;
+}
+
+std::string ReadTail(const fs::path& path, size_t max_bytes) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "";
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  const std::streamoff start = size > static_cast<std::streamoff>(max_bytes)
+                                   ? size - static_cast<std::streamoff>(max_bytes)
+                                   : 0;
+  in.seekg(start);
+  std::string s(static_cast<size_t>(size - start), '\0');
+  in.read(s.data(), static_cast<std::streamsize>(s.size()));
+  return s;
+}
+
+// glog prefixes: "E1122 04:00:00.123456 1234 file.cc:12] ..." (E = error, F = fatal).
+bool IsGlogError(const std::string& line) {
+  return line.size() > 5 && (line[0] == 'E' || line[0] == 'F') &&
+         std::isdigit(static_cast<unsigned char>(line[1])) &&
+         std::isdigit(static_cast<unsigned char>(line[4]));
+}
+
+}  // namespace
+
+std::vector<std::string> ColmapErrorLines(const std::string& log, size_t max_lines) {
+  std::deque<std::string> errors, last;
+  std::istringstream in(log);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.find_first_not_of(" \t") == std::string::npos) continue;
+    if (line.find("Check failed") != std::string::npos || line.find("ERROR") != std::string::npos ||
+        line.find("error:") != std::string::npos || IsGlogError(line) ||
+        line.find("terminate called") != std::string::npos) {
+      errors.push_back(line);
+      if (errors.size() > max_lines) errors.pop_front();
+    }
+    last.push_back(line);
+    if (last.size() > max_lines) last.pop_front();
+  }
+  const std::deque<std::string>& pick = errors.empty() ? last : errors;
+  return {pick.begin(), pick.end()};
+}
+
+std::string FindColmapExecutable(const std::string& preferred) {
+  std::string name = preferred;
+  if (name.empty()) {
+    const char* env = std::getenv("LOCFORGE_COLMAP");
+    name = env && *env ? env : "colmap";
+  }
+  if (name.find('/') != std::string::npos) return IsExecutableFile(name) ? name : "";
+  const char* path = std::getenv("PATH");
+  std::istringstream dirs(path ? path : "/usr/local/bin:/usr/bin:/bin");
+  std::string dir;
+  while (std::getline(dirs, dir, ':')) {
+    const fs::path candidate = fs::path(dir.empty() ? "." : dir) / name;
+    if (IsExecutableFile(candidate)) return candidate.string();
+  }
+  return "";
+}
+
+RunResult RunColmap(const std::vector<std::string>& args, const RunOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) throw ParamError("RunColmap: " + why);
+  RunResult result;
+  result.executable = FindColmapExecutable(options.executable);
+  if (result.executable.empty()) {
+    const char* env = std::getenv("LOCFORGE_COLMAP");
+    throw Error(std::string("colmap executable not found") +
+                (options.executable.empty() && env && *env
+                     ? " at LOCFORGE_COLMAP=" + std::string(env)
+                     : options.executable.empty() ? " in PATH" : ": " + options.executable) +
+                "; install COLMAP 3.8, or set LOCFORGE_COLMAP to its path");
+  }
+  std::vector<std::string> argv_s{result.executable};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (std::string& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const std::string command = Quote(argv_s);
+
+  if (options.log_file.has_parent_path()) fs::create_directories(options.log_file.parent_path());
+  const int log_fd = ::open(options.log_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (log_fd < 0) {
+    throw Error("cannot create colmap log " + options.log_file.string() + ": " +
+                std::strerror(errno));
+  }
+  {
+    const std::string header = "$ " + command + "\n";
+    [[maybe_unused]] const ssize_t w = ::write(log_fd, header.data(), header.size());
+  }
+
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_adddup2(&actions, log_fd, STDOUT_FILENO);
+  posix_spawn_file_actions_adddup2(&actions, log_fd, STDERR_FILENO);
+  if (!options.working_dir.empty()) {
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 29))
+    posix_spawn_file_actions_addchdir_np(&actions, options.working_dir.c_str());
+#else
+#error "posix_spawn_file_actions_addchdir_np is needed (glibc >= 2.29)"
+#endif
+  }
+  // The child gets its own process group so a timeout can stop colmap's children too.
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
+  posix_spawnattr_setpgroup(&attr, 0);
+
+  const auto start = std::chrono::steady_clock::now();
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, result.executable.c_str(), &actions, &attr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attr);
+  ::close(log_fd);
+  if (rc != 0) {
+    throw Error("cannot start " + command + ": " + std::strerror(rc));
+  }
+
+  int status = 0;
+  bool timed_out = false;
+  for (;;) {
+    const pid_t w = ::waitpid(pid, &status, options.timeout_s > 0 ? WNOHANG : 0);
+    if (w == pid) break;
+    if (w < 0 && errno != EINTR) throw Error("waitpid failed for " + command + ": " + std::strerror(errno));
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (options.timeout_s > 0 && elapsed > options.timeout_s && !timed_out) {
+      timed_out = true;
+      ::kill(-pid, SIGTERM);
+      // Give it 5 s to exit, then kill the group.
+      for (int i = 0; i < 50 && ::waitpid(pid, &status, WNOHANG) == 0; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      }
+      ::kill(-pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  std::string failure;
+  if (timed_out) {
+    failure = "timed out after " + std::to_string(options.timeout_s) + " s";
+  } else if (WIFSIGNALED(status)) {
+    failure = "killed by signal " + std::to_string(WTERMSIG(status)) + " (" +
+              strsignal(WTERMSIG(status)) + ")";
+  } else if (WIFEXITED(status) && WEXITSTATUS(status) != 0) {
+    failure = "exit status " + std::to_string(WEXITSTATUS(status));
+  }
+  if (failure.empty()) return result;
+
+  std::string message = "colmap failed (" + failure + "): " + command;
+  const std::vector<std::string> lines = ColmapErrorLines(ReadTail(options.log_file, 64 * 1024));
+  if (!lines.empty()) {
+    message += "\ncolmap said:";
+    for (const std::string& l : lines) message += "\n  " + l;
+  }
+  message += "\nfull log: " + options.log_file.string();
+  throw Error(message);
+}
+
+}  // namespace locforge::colmap
