@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <set>
 
 namespace locforge {
@@ -34,6 +35,12 @@ std::string FormatDouble(double v) {
   for (int precision = 1; precision <= 17; ++precision) {
     std::snprintf(buf, sizeof(buf), "%.*g", precision, v);
     if (std::strtod(buf, nullptr) == v) break;
+  }
+  // %g writes round numbers such as 10 or 5000 as "1e+01", "5e+03": print
+  // whole numbers below 1e16 in full instead (same value, same digits).
+  if (const char* e = std::strchr(buf, 'e')) {
+    const int exponent = std::atoi(e + 1);
+    if (exponent > 0 && exponent < 16) std::snprintf(buf, sizeof(buf), "%.0f", v);
   }
   return buf;
 }
