@@ -269,7 +269,7 @@ TEST_F(ColmapDatabase, ReadsTheMaupertuisDatabase) {
   EXPECT_FALSE(db.HasPoseColumnsInTwoViewGeometries());
   ASSERT_EQ(db.ReadCameras().size(), 1u);
   // The database keeps the initial guess (1.2 x width); the model the refined focal.
-  EXPECT_EQ(db.ReadCameras()[0].camera.params, (std::vector<double>{2302.8, 959.5, 539.5}));
+  EXPECT_EQ(db.ReadCameras()[0].camera.params, (std::vector<double>{1.2 * 1919, 959.5, 539.5}));
   const auto images = db.ReadImages();
   ASSERT_EQ(images.size(), 4u);
   EXPECT_EQ(images[0].name, "00.jpg");
