@@ -97,7 +97,8 @@ bool PrepareGraph(const GraphArgs& args, runtime::Registry* registry,
     for (const auto& d : Deduplicate(errors)) std::cerr << d.ToString() << "\n";
     return false;
   };
-  if (!LoadGraph(args.graph, args.sets, &graph, &errors)) return print();
+  // Parse problems do not stop validation: every problem is reported at once.
+  if (!LoadGraph(args.graph, args.sets, &graph, &errors) && graph.variants.empty()) return print();
   std::vector<fs::path> extra = args.plugin_paths;
   for (const auto& [folder, where] : graph.plugin_paths) {
     std::error_code ec;

@@ -362,7 +362,9 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
           pv.key_where = At(p->first);
           pv.value_where = raw.where;
           bool cli = false;
+          const size_t before = errors_->size();
           pv.value = Substitute(raw.value, raw.where, &cli);
+          pv.broken = errors_->size() != before;
           pv.base_dir = cli ? cwd_ : dir_;
           node.params[p->first.Scalar()] = pv;
         }
@@ -378,7 +380,9 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
           InputSpec spec;
           spec.where = At(in->first);
           bool cli = false;
+          const size_t before = errors_->size();
           const Value v = Substitute(raw.value, raw.where, &cli);
+          spec.broken = errors_->size() != before;
           spec.is_list = v.is_list;
           for (const auto& text : v.items) {
             Wire w;
@@ -414,7 +418,9 @@ void GraphParser::ApplyNodeOverrides(GraphVariant* variant) {
     ParamValue pv;
     pv.key_where = pv.value_where = where;
     bool cli = true;
+    const size_t before = errors_->size();
     pv.value = Substitute(ParseCommandLineValue(set.value), where, &cli);
+    pv.broken = errors_->size() != before;
     pv.base_dir = cwd_;
     node->params[param] = pv;
   }

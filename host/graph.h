@@ -54,6 +54,7 @@ struct ParamValue {
   // Relative PATH values are resolved against this folder: the graph file's
   // folder when written in the graph, the current directory for --set.
   fs::path base_dir;
+  bool broken = false;  // substitution failed (already reported): not checked further
 };
 
 struct Wire {
@@ -66,6 +67,7 @@ struct InputSpec {
   std::vector<Wire> wires;
   bool is_list = false;
   SourceLocation where;  // the port key
+  bool broken = false;   // substitution failed (already reported)
 };
 
 struct NodeSpec {
@@ -122,7 +124,7 @@ struct ResolvedNode {
   std::string name;
   const runtime::StageEntry* stage = nullptr;
   std::map<std::string, std::string> params;  // canonical, defaults filled, PATHs absolute
-  std::vector<ResolvedInput> inputs;          // in port declaration order
+  std::vector<ResolvedInput> inputs;          // sorted by port name
 };
 
 struct ResolvedGraph {

@@ -74,15 +74,16 @@ bool CanonicalParam(const std::string& node, const ParamDecl& decl, const ParamV
     return false;
   }
   std::vector<std::string> items = given.value.items;
+  if (items.empty() && !IsListType(decl.type)) items.push_back("");
   if (decl.type == LF_PARAM_PATH) {
     fs::path p = items.empty() ? fs::path() : fs::path(items.front());
     if (!p.empty() && p.is_relative()) p = given.base_dir / p;
     items = {p.empty() ? "" : p.lexically_normal().string()};
   }
+  const std::string why = ValidateParamValue(decl, IsListType(decl.type) ? JoinList(items) : items.front());
   std::vector<std::string> canon;
   for (const auto& item : items) canon.push_back(CanonicalItem(decl.type, item));
   const std::string value = IsListType(decl.type) ? JoinList(canon) : canon.front();
-  const std::string why = ValidateParamValue(decl, value);
   if (!why.empty()) {
     std::string shown = why;
     std::replace(shown.begin(), shown.end(), LF_LIST_SEPARATOR, ',');
@@ -130,6 +131,7 @@ class VariantChecker {
   Diagnostics* errors_;
   std::vector<std::string> node_names_;
   std::map<std::string, const runtime::StageEntry*> node_stages_;
+  std::map<std::string, std::set<std::string>> edges_;  // node -> the nodes it reads
 };
 
 const runtime::StageEntry* VariantChecker::CheckStage(const NodeSpec& node) {
@@ -159,7 +161,12 @@ void VariantChecker::CheckParams(const NodeSpec& node, const runtime::StageEntry
   std::vector<std::string> names;
   for (const auto& d : stage.params) names.push_back(d.name);
   std::vector<std::pair<std::string, std::string>> given;
+  bool broken = false;
   for (const auto& [name, value] : node.params) {
+    if (value.broken) {
+      broken = true;
+      continue;
+    }
     auto decl = std::find_if(stage.params.begin(), stage.params.end(),
                              [&](const ParamDecl& d) { return d.name == name; });
     if (decl == stage.params.end()) {
@@ -176,7 +183,7 @@ void VariantChecker::CheckParams(const NodeSpec& node, const runtime::StageEntry
     if (d.required() && !node.params.count(d.name))
       Fail(node.where, "node '" + node.name + "': required parameter '" + d.name + "' (" +
                            ParamTypeName(d.type) + ", " + d.doc + ") is missing");
-  if (errors_->size() != before) return;
+  if (broken || errors_->size() != before) return;
   try {
     out->params = runtime::CheckStageParams(stage, given);
   } catch (const std::exception& e) {
@@ -189,6 +196,9 @@ void VariantChecker::CheckInputs(const NodeSpec& node, const runtime::StageEntry
                                  ResolvedNode* out) {
   const auto& inputs = stage.inputs;
   for (const auto& [port_name, spec] : node.inputs) {
+    for (const Wire& wire : spec.wires)
+      if (FindNode(wire.node)) edges_[node.name].insert(wire.node);  // cycles, whatever the types
+    if (spec.broken) continue;
     auto port = std::find_if(inputs.begin(), inputs.end(),
                              [&](const runtime::PortDecl& p) { return port_name == p.name; });
     if (port == inputs.end()) {
@@ -241,14 +251,13 @@ void VariantChecker::CheckInputs(const NodeSpec& node, const runtime::StageEntry
 }
 
 bool VariantChecker::Order(std::vector<ResolvedNode> nodes, ResolvedGraph* out) {
-  std::map<std::string, std::set<std::string>> upstream;
+  std::map<std::string, std::set<std::string>>& upstream = edges_;
   std::set<std::string> read;
-  for (const auto& n : nodes)
-    for (const auto& in : n.inputs) {
-      upstream[n.name].insert(in.node);
-      read.insert(in.node);
-    }
-  std::set<std::string> done;
+  for (const auto& [node, from] : edges_) read.insert(from.begin(), from.end());
+  std::set<std::string> done;  // ordered, or without a stage (reported elsewhere)
+  for (const auto& name : node_names_)
+    if (std::none_of(nodes.begin(), nodes.end(), [&](const ResolvedNode& n) { return n.name == name; }))
+      done.insert(name);
   while (!nodes.empty()) {
     auto ready = std::find_if(nodes.begin(), nodes.end(), [&](const ResolvedNode& n) {
       for (const auto& u : upstream[n.name])
@@ -268,10 +277,17 @@ bool VariantChecker::Order(std::vector<ResolvedNode> nodes, ResolvedGraph* out) 
     std::string next;
     for (const auto& u : upstream[path.back()])
       if (!done.count(u)) { next = u; break; }
+    if (next.empty()) return false;  // not reachable: a blocked node has a pending input
     auto seen = std::find(path.begin(), path.end(), next);
     if (seen != path.end()) {
       std::vector<std::string> cycle(seen, path.end());
       std::reverse(cycle.begin(), cycle.end());  // data-flow order
+      // Start at the node written first in the file.
+      auto first_written = std::min_element(cycle.begin(), cycle.end(), [&](const auto& a, const auto& b) {
+        return std::find(node_names_.begin(), node_names_.end(), a) <
+               std::find(node_names_.begin(), node_names_.end(), b);
+      });
+      std::rotate(cycle.begin(), first_written, cycle.end());
       std::string text;
       for (const auto& n : cycle) text += n + " -> ";
       text += cycle.front();

@@ -1,0 +1,315 @@
+// Graph parsing, substitution, matrix expansion and validation, with exact
+// line:column positions, against fake stages (test_stages.h).
+#include "graph.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "test_stages.h"
+#include "testing.h"
+
+namespace locforge::host {
+namespace {
+
+using testing::FakeStages;
+
+struct Parsed {
+  bool ok = false;
+  Graph graph;
+  Diagnostics errors;
+  std::string Text() const {
+    std::string s;
+    for (const auto& e : errors) s += e.ToString() + "\n";
+    return s;
+  }
+};
+
+Parsed Parse(const std::string& text, const std::vector<Override>& sets = {},
+             const fs::path& file = "/graphs/g.yaml", const fs::path& cwd = "/cwd") {
+  Parsed p;
+  p.ok = ParseGraph(text, file, sets, cwd, &p.graph, &p.errors);
+  return p;
+}
+
+// Parses and validates every variant; returns all diagnostics as text.
+std::string Check(const std::string& text, const std::vector<Override>& sets = {},
+                  std::vector<ResolvedGraph>* out = nullptr,
+                  const fs::path& file = "/graphs/g.yaml", const fs::path& cwd = "/cwd") {
+  static FakeStages stages;
+  Parsed p = Parse(text, sets, file, cwd);
+  for (const auto& v : p.graph.variants) {
+    ResolvedGraph r;
+    if (ResolveVariant(v, stages.lookup(), &r, &p.errors) && out) out->push_back(r);
+  }
+  p.errors = Deduplicate(p.errors);
+  return p.Text();
+}
+
+const NodeSpec& NodeOf(const Graph& g, const std::string& name, size_t variant = 0) {
+  for (const auto& n : g.variants.at(variant).nodes)
+    if (n.name == name) return n;
+  throw std::runtime_error("no node " + name);
+}
+
+TEST(GraphParse, SubstitutesVarsInsideScalarsAndWholeLists) {
+  const Parsed p = Parse(R"(locforge: 1
+vars:
+  n: 8
+  name: run
+  scales: [1, 2.5]
+nodes:
+  a:
+    stage: source/images
+    params: {count: "${n}", tag: "${name}-${n}", scales: "${scales}"}
+)");
+  ASSERT_TRUE(p.ok) << p.Text();
+  const NodeSpec& a = NodeOf(p.graph, "a");
+  EXPECT_EQ(a.params.at("count").value.scalar(), "8");
+  EXPECT_EQ(a.params.at("tag").value.scalar(), "run-8");
+  EXPECT_TRUE(a.params.at("scales").value.is_list);
+  EXPECT_EQ(a.params.at("scales").value.items, (std::vector<std::string>{"1", "2.5"}));
+  EXPECT_EQ(a.params.at("count").value_where.ToString(), "/graphs/g.yaml:9:21");
+}
+
+TEST(GraphParse, SetOverridesVarsAndNodeParams) {
+  const Parsed p = Parse(R"(locforge: 1
+vars: {n: 8}
+nodes:
+  a: {stage: source/images, params: {count: "${n}", mode: fast}}
+)", {{"n", "3"}, {"a.mode", "slow"}, {"a.scales", "[4, 5]"}});
+  ASSERT_TRUE(p.ok) << p.Text();
+  const NodeSpec& a = NodeOf(p.graph, "a");
+  EXPECT_EQ(a.params.at("count").value.scalar(), "3");
+  EXPECT_EQ(a.params.at("count").base_dir, fs::path("/cwd"));  // came from --set
+  EXPECT_EQ(a.params.at("mode").value.scalar(), "slow");
+  EXPECT_EQ(a.params.at("mode").value_where.ToString(), "--set a.mode=slow");
+  EXPECT_EQ(a.params.at("scales").value.items, (std::vector<std::string>{"4", "5"}));
+}
+
+TEST(GraphParse, MatrixExpandsToCartesianProduct) {
+  const Parsed p = Parse(R"(locforge: 1
+matrix:
+  local: [sift, r2d2]
+  global: [netvlad, apgem, densevlad]
+nodes:
+  a: {stage: "features/${local}", params: {g: "${global}"}}
+)");
+  ASSERT_TRUE(p.ok) << p.Text();
+  ASSERT_EQ(p.graph.variants.size(), 6u);
+  EXPECT_EQ(p.graph.variants[0].name, "local=sift,global=netvlad");
+  EXPECT_EQ(p.graph.variants[5].name, "local=r2d2,global=densevlad");
+  EXPECT_EQ(NodeOf(p.graph, "a", 4).stage, "features/r2d2");
+  EXPECT_EQ(NodeOf(p.graph, "a", 4).params.at("g").value.scalar(), "apgem");
+}
+
+TEST(GraphParse, SetPinsAMatrixKey) {
+  const Parsed p = Parse(R"(locforge: 1
+matrix: {local: [sift, r2d2], global: [a, b]}
+nodes:
+  n: {stage: "features/${local}"}
+)", {{"local", "r2d2"}});
+  ASSERT_TRUE(p.ok) << p.Text();
+  ASSERT_EQ(p.graph.variants.size(), 2u);
+  EXPECT_EQ(p.graph.variants[0].name, "local=r2d2,global=a");
+}
+
+TEST(GraphParse, UnknownVariableIsLocated) {
+  const Parsed p = Parse(R"(locforge: 1
+vars: {count: 8}
+nodes:
+  a:
+    stage: source/images
+    params: {count: "${cout}"}
+)");
+  EXPECT_FALSE(p.ok);
+  EXPECT_EQ(p.Text(),
+            "/graphs/g.yaml:6:21: error: unknown variable 'cout' (did you mean 'count'?); "
+            "expected one of: count\n");
+}
+
+TEST(GraphParse, UnknownSetVariable) {
+  const Parsed p = Parse("locforge: 1\nvars: {count: 8}\nnodes:\n  a: {stage: source/images}\n",
+                         {{"conut", "3"}});
+  EXPECT_FALSE(p.ok);
+  EXPECT_NE(p.Text().find("--set conut=3: error: unknown variable 'conut' (did you mean 'count'?)"),
+            std::string::npos)
+      << p.Text();
+}
+
+TEST(GraphParse, DuplicateKeysAreLocated) {
+  const Parsed p = Parse(R"(locforge: 1
+nodes:
+  a:
+    stage: source/images
+    params: {count: 1, count: 2}
+  a:
+    stage: source/images
+)");
+  EXPECT_FALSE(p.ok);
+  EXPECT_NE(p.Text().find("g.yaml:5:24: error: duplicate key 'count'"), std::string::npos) << p.Text();
+  EXPECT_NE(p.Text().find("g.yaml:6:3: error: duplicate key 'a'"), std::string::npos) << p.Text();
+}
+
+TEST(GraphParse, SyntaxErrorAndMissingVersion) {
+  Parsed p = Parse("locforge: 1\nnodes:\n  a: {stage: [x\n");
+  EXPECT_FALSE(p.ok);
+  EXPECT_NE(p.Text().find("g.yaml:4:1: error: YAML syntax: end of sequence flow not found"), std::string::npos) << p.Text();
+  EXPECT_NE(p.Text().find("YAML syntax"), std::string::npos) << p.Text();
+  p = Parse("nodes:\n  a: {stage: source/images}\n");
+  EXPECT_EQ(p.Text(), "/graphs/g.yaml:1:1: error: missing 'locforge: 1' (the graph format version)\n");
+  p = Parse("locforge: 2\nnodes:\n  a: {stage: source/images}\n");
+  EXPECT_EQ(p.Text(), "/graphs/g.yaml:1:11: error: unsupported graph format version; expected 'locforge: 1'\n");
+  p = Parse("locforge: 1\nnode:\n  a: {stage: source/images}\n");
+  EXPECT_NE(p.Text().find("g.yaml:2:1: error: unknown top-level key 'node' (did you mean 'nodes'?)"),
+            std::string::npos) << p.Text();
+}
+
+TEST(GraphCheck, ValidGraphIsOrderedTopologically) {
+  std::vector<ResolvedGraph> out;
+  const std::string errors = Check(R"(locforge: 1
+nodes:
+  match: {stage: match/pairs, inputs: {features: feats.features}}
+  feats: {stage: features/sift, inputs: {images: imgs}, params: {count: 5, scales: [1, 2.0]}}
+  imgs: {stage: source/images, params: {count: "0010", verbose: yes}}
+)", {}, &out);
+  ASSERT_EQ(errors, "");
+  ASSERT_EQ(out.size(), 1u);
+  const auto& nodes = out[0].nodes;
+  ASSERT_EQ(nodes.size(), 3u);
+  EXPECT_EQ(nodes[0].name, "imgs");
+  EXPECT_EQ(nodes[1].name, "feats");
+  EXPECT_EQ(nodes[2].name, "match");
+  EXPECT_EQ(out[0].sinks, std::vector<std::string>{"match"});
+  // Canonical values, defaults filled.
+  EXPECT_EQ(nodes[0].params.at("count"), "10");
+  EXPECT_EQ(nodes[0].params.at("verbose"), "true");
+  EXPECT_EQ(nodes[0].params.at("mode"), "fast");
+  EXPECT_EQ(nodes[1].params.at("scales"), std::string("1") + LF_LIST_SEPARATOR + "2");
+  ASSERT_EQ(nodes[1].inputs.size(), 1u);
+  EXPECT_EQ(nodes[1].inputs[0].node, "imgs");
+  EXPECT_EQ(nodes[1].inputs[0].out_port, "images");  // the only output, implied
+}
+
+TEST(GraphCheck, UnknownStageWithHint) {
+  EXPECT_EQ(Check("locforge: 1\nnodes:\n  a: {stage: source/imags}\n"),
+            "/graphs/g.yaml:3:14: error: node 'a': unknown stage 'source/imags' (did you mean "
+            "'source/images'?); expected a KIND/NAME listed by `locforge plugins list`\n");
+}
+
+TEST(GraphCheck, UnknownParamWithHint) {
+  EXPECT_EQ(Check("locforge: 1\nnodes:\n  a:\n    stage: source/images\n    params: {cuont: 3}\n"),
+            "/graphs/g.yaml:5:14: error: node 'a': stage 'source/images' has no parameter 'cuont' "
+            "(did you mean 'count'?); expected one of: count, verbose, mode\n");
+}
+
+TEST(GraphCheck, MistypedOutOfRangeAndBadChoice) {
+  const std::string e = Check(R"(locforge: 1
+nodes:
+  a: {stage: source/images, params: {count: many}}
+  b: {stage: source/images, params: {count: 0}}
+  c: {stage: source/images, params: {mode: fsat}}
+  d: {stage: source/images, params: {count: [1, 2]}}
+)");
+  EXPECT_NE(e.find("g.yaml:3:45: error: node 'a': parameter 'count' (int): expected an integer, got 'many'"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:4:45: error: node 'b': parameter 'count' (int): value 0 is out of range [1, +inf]"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:5:44: error: node 'c': parameter 'mode' (enum): 'fsat' is not one of {fast, bad, slow} (did you mean 'fast'?)"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:6:45: error: node 'd': parameter 'count' (int): expected a single value, got a list"),
+            std::string::npos) << e;
+}
+
+TEST(GraphCheck, PluginCheckRefusal) {
+  const std::string e = Check("locforge: 1\nnodes:\n  a: {stage: source/images, params: {mode: bad}}\n");
+  EXPECT_EQ(e, "/graphs/g.yaml:3:14: error: node 'a': parameters refused by stage 'source/images': "
+               "source/images: mode 'bad' is refused by Check()\n");
+}
+
+TEST(GraphCheck, RequiredParamAndMissingPath) {
+  const fs::path dir = locforge::testing::MakeTempDir("lf-graph");
+  fs::create_directories(dir / "data");
+  const fs::path graph = dir / "g.yaml";
+  std::vector<ResolvedGraph> out;
+  // Written in the graph: relative to the graph file's folder.
+  EXPECT_EQ(Check("locforge: 1\nnodes:\n  a: {stage: source/folder, params: {root: data}}\n", {},
+                  &out, graph, "/elsewhere"),
+            "");
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].nodes[0].params.at("root"), (dir / "data").string());
+  // From --set: relative to the current directory.
+  const std::string e = Check("locforge: 1\nnodes:\n  a: {stage: source/folder, params: {root: data}}\n",
+                              {{"a.root", "data"}}, nullptr, graph, "/elsewhere");
+  EXPECT_EQ(e, "--set a.root=data: error: node 'a': parameter 'root' (path): '/elsewhere/data' does "
+               "not exist (expected an existing file or folder)\n");
+  EXPECT_EQ(Check("locforge: 1\nnodes:\n  a: {stage: source/folder}\n"),
+            "/graphs/g.yaml:3:3: error: node 'a': required parameter 'root' (path, input folder) is missing\n");
+  fs::remove_all(dir);
+}
+
+TEST(GraphCheck, WiresUnknownNodeUnknownPortTypeMismatchUnwired) {
+  const std::string e = Check(R"(locforge: 1
+nodes:
+  imgs: {stage: source/images}
+  f1: {stage: features/sift, inputs: {images: imgz.images}}
+  f2: {stage: features/sift, inputs: {images: imgs.imagez}}
+  f3: {stage: features/sift, inputs: {imags: imgs.images}}
+  m1: {stage: match/pairs, inputs: {features: imgs.images}}
+  m2: {stage: match/pairs}
+  m3: {stage: match/pairs, inputs: {features: [f2, f3]}}
+)");
+  EXPECT_NE(e.find("g.yaml:4:47: error: node 'f1': input 'images' reads unknown node 'imgz' (did you mean 'imgs'?)"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:5:47: error: node 'f2': node 'imgs' (source/images) has no output 'imagez' (did you mean 'images'?)"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:6:39: error: node 'f3': stage 'features/sift' has no input 'imags' (did you mean 'images'?)"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:7:47: error: node 'm1': input 'features' expects artifact type 'kapture.features' but imgs.images gives 'kapture.dataset'"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:8:3: error: node 'm2': required input 'features' (kapture.features) is not wired"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:9:37: error: node 'm3': input 'features' takes exactly one wire"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:6:3: error: node 'f3': required input 'images'"), std::string::npos) << e;
+}
+
+TEST(GraphCheck, MultipleWiresOnAMultiplePort) {
+  std::vector<ResolvedGraph> out;
+  EXPECT_EQ(Check(R"(locforge: 1
+nodes:
+  imgs: {stage: source/images}
+  a: {stage: features/sift, inputs: {images: imgs}}
+  b: {stage: features/sift, inputs: {images: imgs}, params: {count: 3}}
+  all: {stage: filter/features, inputs: {features: [a.features, b.features]}}
+)", {}, &out), "");
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].nodes.back().inputs.size(), 2u);
+}
+
+TEST(GraphCheck, CycleIsNamed) {
+  EXPECT_EQ(Check(R"(locforge: 1
+nodes:
+  imgs: {stage: source/images}
+  a: {stage: filter/features, inputs: {features: [c.features]}}
+  b: {stage: filter/features, inputs: {features: [a.features]}}
+  c: {stage: filter/features, inputs: {features: [b.features]}}
+)"),
+            "/graphs/g.yaml:4:3: error: cycle in the graph: a -> b -> c -> a (expected a graph "
+            "without cycles)\n");
+}
+
+TEST(GraphCheck, ComponentIsNotANode) {
+  EXPECT_EQ(Check("locforge: 1\nnodes:\n  r: {stage: registration/icp}\n"),
+            "/graphs/g.yaml:3:14: error: node 'r': stage 'registration/icp' is a component used "
+            "inside other stages, not runnable as a graph node\n");
+}
+
+TEST(GraphCheck, SetOnUnknownNode) {
+  EXPECT_NE(Check("locforge: 1\nnodes:\n  imgs: {stage: source/images}\n", {{"img.count", "3"}})
+                .find("--set img.count=3: error: unknown node 'img' (did you mean 'imgs'?)"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace locforge::host
