@@ -1,0 +1,80 @@
+#include "render.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace locforge::sim {
+namespace {
+
+uint64_t SplitMix(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// Zero-mean, unit-variance noise from a hash (sum of 4 uniforms): cheap,
+// deterministic per pixel whatever the thread split.
+float PixelNoise(uint64_t seed, uint64_t index) {
+  uint64_t h = SplitMix(seed ^ SplitMix(index));
+  float sum = 0;
+  for (int i = 0; i < 4; ++i, h >>= 16) sum += static_cast<float>(h & 0xFFFF) / 65535.f;
+  return (sum - 2.f) * 1.7320508f;
+}
+
+const Eigen::Vector3d kKeyLight = Eigen::Vector3d(0.3, 0.5, 0.81).normalized();
+
+}  // namespace
+
+double RenderedImage::PersonFraction() const {
+  if (person_mask.empty()) return 0;
+  size_t n = 0;
+  for (uint8_t m : person_mask) n += m != 0;
+  return static_cast<double>(n) / person_mask.size();
+}
+
+void Render(const World& world, const std::vector<Cylinder>& people, const PinholeCamera& camera,
+            const Pose& T_world_camera, const RenderOptions& o, RenderedImage* out, int row_begin,
+            int row_end) {
+  const int w = camera.width, h = camera.height;
+  if (out->width != w || out->height != h || out->rgb.size() != size_t(w) * h * 3) {
+    out->width = w;
+    out->height = h;
+    out->rgb.assign(size_t(w) * h * 3, 0);
+    out->person_mask.assign(size_t(w) * h, 0);
+  }
+  if (row_end < 0 || row_end > h) row_end = h;
+  const Eigen::Matrix3d R = T_world_camera.R();
+  const Eigen::Vector3d origin = T_world_camera.t;
+  const double pixel_angle = 1.0 / camera.fx;
+  const float scale = static_cast<float>(o.exposure * o.gain);
+  for (int y = row_begin; y < row_end; ++y)
+    for (int x = 0; x < w; ++x) {
+      const Eigen::Vector3d d = (R * camera.Ray(x + 0.5, y + 0.5)).normalized();
+      Hit hit;
+      Eigen::Vector3f color = Eigen::Vector3f::Zero();
+      if (world.Cast(origin, d, people, &hit)) {
+        const double cos_view = std::max(0.25, std::abs(hit.normal.dot(d)));
+        color = world.Albedo(hit, hit.t * pixel_angle / cos_view);
+        if (o.shading) {
+          color *= static_cast<float>(0.55 + 0.45 * std::abs(hit.normal.dot(kKeyLight)));
+          if (world.Glossy(hit)) {
+            // Mirror-like highlight of the ceiling lights: view dependent.
+            const Eigen::Vector3d r = d - 2 * d.dot(hit.normal) * hit.normal;
+            const double spec = std::pow(std::max(0.0, r.z()), 12.0) + 0.25 * std::pow(std::max(0.0, r.dot(kKeyLight)), 40.0);
+            color = 0.6f * color + Eigen::Vector3f::Constant(static_cast<float>(200 * spec));
+          }
+        }
+      }
+      const size_t i = size_t(y) * w + x;
+      for (int c = 0; c < 3; ++c) {
+        float v = color[c] * scale;
+        if (o.noise_sigma > 0)
+          v += static_cast<float>(o.noise_sigma * o.gain) * PixelNoise(o.noise_seed, i * 3 + c);
+        out->rgb[i * 3 + c] = static_cast<uint8_t>(std::clamp(v + 0.5f, 0.f, 255.f));
+      }
+      out->person_mask[i] = hit.person >= 0 ? 255 : 0;
+    }
+}
+
+}  // namespace locforge::sim
