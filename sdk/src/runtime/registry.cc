@@ -4,12 +4,14 @@
 #include "locforge/runtime/registry.h"
 
 #include <dlfcn.h>
+#include <elf.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cstddef>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <set>
 
 #include "locforge/error.h"
@@ -181,6 +183,40 @@ const LfPluginInfo* CallEntry(LfPluginEntryFn entry) {
   }
 }
 
+// Checks that `file` is a whole ELF shared object before dlopen maps it: a
+// truncated library can pass dlopen and then crash (SIGBUS) when a page past
+// the end of the file is touched. Returns "" when fine, else the reason.
+std::string CheckElfFile(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return "cannot open file";
+  in.seekg(0, std::ios::end);
+  const uint64_t size = static_cast<uint64_t>(in.tellg());
+  in.seekg(0);
+  Elf64_Ehdr header{};
+  if (!in.read(reinterpret_cast<char*>(&header), sizeof(header)))
+    return "not an ELF shared library (file too short, " + std::to_string(size) + " bytes)";
+  if (std::memcmp(header.e_ident, ELFMAG, SELFMAG) != 0) return "not an ELF shared library";
+  if (header.e_ident[EI_CLASS] != ELFCLASS64) return "not a 64-bit ELF library";
+  if (header.e_type != ET_DYN) return "ELF file is not a shared library";
+  const auto truncated = [&](uint64_t end, const char* what) {
+    return "truncated file: " + std::string(what) + " ends at byte " + std::to_string(end) +
+           " but the file has " + std::to_string(size) + " bytes";
+  };
+  const uint64_t ph_end = header.e_phoff + uint64_t{header.e_phnum} * header.e_phentsize;
+  if (ph_end > size) return truncated(ph_end, "program header table");
+  const uint64_t sh_end = header.e_shoff + uint64_t{header.e_shnum} * header.e_shentsize;
+  if (header.e_shoff != 0 && sh_end > size) return truncated(sh_end, "section header table");
+  if (header.e_phentsize != sizeof(Elf64_Phdr)) return "";  // let dlopen judge
+  in.seekg(static_cast<std::streamoff>(header.e_phoff));
+  for (int i = 0; i < header.e_phnum; ++i) {
+    Elf64_Phdr ph{};
+    if (!in.read(reinterpret_cast<char*>(&ph), sizeof(ph))) return "cannot read program headers";
+    if (ph.p_type == PT_LOAD && ph.p_offset + ph.p_filesz > size)
+      return truncated(ph.p_offset + ph.p_filesz, "a loadable segment");
+  }
+  return "";
+}
+
 fs::path ExecutableDir() {
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
@@ -261,6 +297,8 @@ bool Registry::LoadFile(const fs::path& file) {
     return false;
   };
 
+  if (const std::string why = CheckElfFile(path); !why.empty())
+    return refuse("cannot load shared library: " + why);
   // RTLD_NOW: an unresolved symbol is reported now, not as a crash mid-run.
   // RTLD_LOCAL: plugins cannot see (or clash with) each other's symbols.
   dlerror();
