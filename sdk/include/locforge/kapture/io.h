@@ -14,6 +14,7 @@
 
 #include <istream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -40,11 +41,17 @@ Trajectories ParseTrajectories(std::istream& in, const std::string& display_name
 // as the toolbox writes them.
 void WriteTrajectories(const fs::path& path, const Trajectories& trajectories);
 
-// Parses "qw, qx, qy, qz, tx, ty, tz" fields starting at row.fields[first].
-// All four rotation fields empty -> rotation-only is false, etc.
-Pose ParsePoseFields(const CsvRow& row, size_t first, const std::string& file, PoseParts* parts);
-// Seven fields, empty for a missing part.
-std::vector<std::string> FormatPoseFields(const Pose& pose, PoseParts parts);
+// Parses "qw, qx, qy, qz, tx, ty, tz" fields starting at row.fields[first]
+// into a pose with a unit quaternion. Four empty rotation fields make a
+// translation-only pose, three empty translation fields a rotation-only one
+// (`parts`). `raw_rotation` (optional) receives the file's quaternion when
+// normalising changed it.
+Pose ParsePoseFields(const CsvRow& row, size_t first, const std::string& file, PoseParts* parts,
+                     std::optional<Eigen::Vector4d>* raw_rotation = nullptr);
+// Seven fields, empty for a missing part. `raw_rotation`, when given and
+// still normalising to pose.q exactly, is written instead of pose.q.
+std::vector<std::string> FormatPoseFields(const Pose& pose, PoseParts parts,
+                                          const Eigen::Vector4d* raw_rotation = nullptr);
 
 // ------------------------------------------------------------------ records
 

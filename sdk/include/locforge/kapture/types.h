@@ -5,6 +5,12 @@
 //  - rigs.txt holds, for each sensor of a rig, T_sensor_rig (rig frame ->
 //    sensor frame), so a sensor's pose is T_sensor_world = T_sensor_rig *
 //    T_rig_world (the toolbox's rigs_remove; rigs.h implements it).
+//  - Rotations are unit quaternions in every Pose read here (safe for
+//    geometry). The toolbox writes quaternions as numpy-quaternion holds them,
+//    often 1e-7 off unit length; those raw values are kept beside the poses
+//    (Trajectories::raw_rotations, RigSensor::raw_rotation) and written back
+//    while the pose still has the rotation they normalise to, so unchanged
+//    poses round-trip exactly and changed ones are written as they are now.
 //  - Timestamps are integers in the dataset's own unit.
 //  - Keypoints are stored as the extractor wrote them (columns x, y, then
 //    scale/orientation/affine terms), in pixels. kapture itself does not fix
@@ -96,8 +102,10 @@ enum class PoseParts : uint8_t {
 // One sensor of a rig: T_sensor_rig.
 struct RigSensor {
   std::string sensor_id;
-  Pose sensor_from_rig;  // T_sensor_rig
+  Pose sensor_from_rig;  // T_sensor_rig, unit quaternion
   PoseParts parts = PoseParts::kComplete;
+  // (qw, qx, qy, qz) as in the file when not exactly unit (see the top).
+  std::optional<Eigen::Vector4d> raw_rotation;
 };
 
 struct Rig {
@@ -132,7 +140,12 @@ struct Trajectories {
   std::map<TrajectoryKey, Pose> poses;
   // Only the entries whose rotation or translation was empty in the file.
   std::map<TrajectoryKey, PoseParts> partial;
+  // (qw, qx, qy, qz) as in the file for the entries whose quaternion was not
+  // exactly unit length (see the top of this file).
+  std::map<TrajectoryKey, Eigen::Vector4d> raw_rotations;
 
+  // Sets a pose (give a unit quaternion: Pose's constructor normalises) and
+  // forgets any raw rotation of that entry.
   void Set(Timestamp t, const std::string& device, const Pose& pose,
            PoseParts parts = PoseParts::kComplete);
   const Pose* Find(Timestamp t, const std::string& device) const;
@@ -188,8 +201,9 @@ struct WifiRecord {
   int64_t frequency = 0;  // MHz
   double rssi = 0;        // dBm
   std::string ssid;
-  int64_t scan_time_start = 0;
-  int64_t scan_time_end = 0;
+  // Empty in the file when the scan times are unknown (the toolbox's None).
+  std::optional<int64_t> scan_time_start;
+  std::optional<int64_t> scan_time_end;
 };
 
 struct BluetoothRecord {
