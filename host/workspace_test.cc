@@ -1,0 +1,121 @@
+// SHA-256 vectors, cache key stability and sensitivity, node folders, links.
+#include "workspace.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <thread>
+
+#include "sha256.h"
+#include "test_stages.h"
+#include "testing.h"
+
+namespace locforge::host {
+namespace {
+
+TEST(Sha256, KnownVectors) {  // FIPS 180-4 examples
+  EXPECT_EQ(Sha256Hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  EXPECT_EQ(Sha256Hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_EQ(Sha256Hex("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq"),
+            "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+  Sha256 chunked;
+  const std::string million(1000000, 'a');
+  for (size_t i = 0; i < million.size(); i += 997) chunked.Update(million.substr(i, 997));
+  EXPECT_EQ(chunked.HexDigest(), "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+}
+
+class CacheKeyTest : public ::testing::Test {
+ protected:
+  ResolvedNode Node(std::map<std::string, std::string> params) {
+    ResolvedNode n;
+    n.name = "imgs";
+    n.stage = stages_.Find("source/images");
+    n.params = {{"count", "8"}, {"verbose", "false"}, {"mode", "fast"}};
+    for (const auto& [k, v] : params) n.params[k] = v;
+    return n;
+  }
+  testing::FakeStages stages_;
+};
+
+TEST_F(CacheKeyTest, StableForTheSameInputs) {
+  const std::string key = CacheKey(Node({}), {});
+  EXPECT_EQ(key.size(), 64u);
+  EXPECT_EQ(key, CacheKey(Node({}), {}));
+  EXPECT_EQ(key, CacheKey(Node({{"mode", "fast"}}), {}));
+}
+
+TEST_F(CacheKeyTest, SensitiveToParamsPluginVersionAndInputs) {
+  const std::string key = CacheKey(Node({}), {});
+  EXPECT_NE(key, CacheKey(Node({{"count", "9"}}), {}));
+  EXPECT_NE(key, CacheKey(Node({{"mode", "slow"}}), {}));
+  // LF_PARAM_NO_CACHE_KEY parameters do not change results, nor the key.
+  EXPECT_EQ(key, CacheKey(Node({{"verbose", "true"}}), {}));
+  stages_.plugin_info().version = "1.0.1";
+  EXPECT_NE(key, CacheKey(Node({}), {}));
+  stages_.plugin_info().version = "1.0.0";
+  stages_.plugin_info().sdk_version = "0.2.0";
+  EXPECT_NE(key, CacheKey(Node({}), {}));
+  stages_.plugin_info().sdk_version = "0.1.0";
+  EXPECT_EQ(key, CacheKey(Node({}), {}));
+
+  ResolvedNode feats;
+  feats.name = "feats";
+  feats.stage = stages_.Find("features/sift");
+  feats.params = {{"count", "8"}, {"scales", "1"}};
+  feats.inputs = {{"images", "kapture.dataset", "imgs", "images"}};
+  const std::string a = CacheKey(feats, {{"imgs", key}});
+  EXPECT_EQ(a, CacheKey(feats, {{"imgs", key}}));
+  EXPECT_NE(a, CacheKey(feats, {{"imgs", CacheKey(Node({{"count", "9"}}), {})}}));
+}
+
+TEST_F(CacheKeyTest, PathParamsEnterByContentStamp) {
+  const fs::path dir = locforge::testing::MakeTempDir("lf-key");
+  fs::create_directories(dir / "data" / "sub");
+  std::ofstream(dir / "data" / "a.txt") << "one";
+  ResolvedNode n;
+  n.name = "folder";
+  n.stage = stages_.Find("source/folder");
+  n.params = {{"root", (dir / "data").string()}};
+  const std::string k1 = CacheKey(n, {});
+  EXPECT_EQ(k1, CacheKey(n, {}));
+  std::ofstream(dir / "data" / "sub" / "b.txt") << "two";  // depth 2: part of the stamp
+  const std::string k2 = CacheKey(n, {});
+  EXPECT_NE(k1, k2);
+  std::ofstream(dir / "data" / "a.txt") << "longer content";  // size changes
+  EXPECT_NE(k2, CacheKey(n, {}));
+  EXPECT_NE(PathStamp(dir / "data").find("sub/b.txt 3@"), std::string::npos) << PathStamp(dir / "data");
+  EXPECT_NE(PathStamp(dir / "nothing").find(" missing"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST(WorkspaceTest, FoldersLinksAndPublish) {
+  const fs::path root = locforge::testing::MakeTempDir("lf-ws");
+  Workspace ws(root / "ws");
+  const std::string key(64, 'a');
+  const fs::path dir = ws.NodeDir("stats", key);
+  EXPECT_EQ(dir, root / "ws" / "cache" / "stats-aaaaaaaaaaaaaaaa");
+  EXPECT_FALSE(Workspace::IsComplete(dir));
+  fs::path partial = dir;
+  partial += ".partial-1";
+  fs::create_directories(partial);
+  std::ofstream(partial / "out.txt") << "result";
+  Publish(partial, dir, "{}\n");
+  EXPECT_TRUE(Workspace::IsComplete(dir));
+  EXPECT_FALSE(fs::exists(partial));
+  ws.Link("", "stats", dir);
+  EXPECT_EQ(fs::read_symlink(ws.LinkPath("", "stats")), fs::path("../cache/stats-aaaaaaaaaaaaaaaa"));
+  EXPECT_TRUE(fs::exists(ws.LinkPath("", "stats") / "out.txt"));
+  ws.Link("bins=8", "stats", dir);
+  EXPECT_EQ(ws.LinkPath("bins=8", "stats"), root / "ws" / "variants" / "bins=8" / "nodes" / "stats");
+  EXPECT_TRUE(fs::exists(ws.LinkPath("bins=8", "stats") / "out.txt"));
+  // Publishing over a complete folder (--force) replaces it.
+  fs::create_directories(partial);
+  std::ofstream(partial / "new.txt") << "again";
+  Publish(partial, dir, "{}\n");
+  EXPECT_TRUE(fs::exists(dir / "new.txt"));
+  EXPECT_FALSE(fs::exists(dir / "out.txt"));
+  fs::remove_all(root);
+}
+
+}  // namespace
+}  // namespace locforge::host
