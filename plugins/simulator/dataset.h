@@ -1,0 +1,80 @@
+// A whole simulated recording: presets, the plan of sequences (mapping and
+// query ones, days apart), and the writer of the kapture dataset with its
+// ground truth. Deterministic for a seed, whatever the number of threads.
+#ifndef LOCFORGE_SIM_DATASET_H_
+#define LOCFORGE_SIM_DATASET_H_
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "camera_rig.h"
+#include "locforge/fs.h"
+#include "platform.h"
+#include "scene.h"
+
+namespace locforge::sim {
+
+struct SimOptions {
+  uint64_t seed = 0;
+  FloorOptions floor;               // used when scene_file is empty
+  std::string scene_file;           // YAML floor plan (README.md), "" = generated from the seed
+  RigOptions rig;
+  WheelOptions wheels;
+  MotionLimits limits;
+  int mapping_sequences = 1;
+  int validation_sequences = 1;
+  int test_sequences = 1;
+  double mapping_duration_s = 8;
+  double query_duration_s = 4;
+  double crowdedness = 2.0;         // people per 100 m^2 of floor
+  bool lidar = true;                // write LiDAR scans
+  bool masks = true;                // write person masks
+  std::string image_format = "jpg"; // jpg | png
+  std::string layout = "splits";    // splits: mapping/, validation/, test/ kaptures; single: one kapture
+  int texture_size = 512;           // texels per texture side
+  bool Check(std::string* why) const;
+};
+
+// "tiny" (unit tests, seconds), "small" (the demo), "large" (thousands of images).
+SimOptions PresetOptions(const std::string& preset);
+
+struct SequencePlan {
+  std::string name;   // e.g. "map_00", "val_00", "test_00"
+  std::string split;  // mapping | validation | test
+  int day = 0;        // appearance session (signage, exposure, crowd)
+  double duration_s = 0;
+  Timestamp t0_us = 0;  // timestamp of trajectory time 0 (microseconds)
+  uint64_t seed = 0;
+};
+
+std::vector<SequencePlan> PlanSequences(const SimOptions& options);
+
+struct SequenceSummary {
+  SequencePlan plan;
+  double distance_m = 0;
+  double odometry_drift = 0;     // dead-reckoning end error / distance
+  int images = 0, scans = 0, people = 0;
+  double person_fraction = 0;    // mean fraction of image pixels showing people
+};
+
+struct DatasetSummary {
+  std::vector<SequenceSummary> sequences;
+  int images = 0, scans = 0;
+  double render_seconds = 0;     // wall time spent rendering + encoding images
+};
+
+struct Hooks {
+  std::function<void(const std::string&)> log;
+  std::function<void(uint64_t done, uint64_t total)> progress;
+  std::function<bool()> cancelled;  // true -> stop (throws Cancelled)
+};
+
+// Writes the dataset under `out` (layout in README.md). `threads` >= 1.
+DatasetSummary GenerateDataset(const SimOptions& options, const fs::path& out, int threads,
+                               const Hooks& hooks = {});
+
+}  // namespace locforge::sim
+
+#endif  // LOCFORGE_SIM_DATASET_H_
