@@ -275,7 +275,8 @@ RunResult RunPerItem(const StageEntry& stage, void* instance, const RunOptions& 
   // Parallel items get one thread each; a lone worker may use them all.
   const int item_threads = workers > 1 ? 1 : std::max(1, o.threads);
 
-  std::mutex mutex;  // guards failures, progress counters
+  // Guards failures and counters, and serialises progress with log callbacks.
+  std::mutex& mutex = data->state().mutex;
   std::vector<ItemFailure> failures;
   uint64_t finished = result.items_resumed;
   std::atomic<size_t> next{0};

@@ -145,7 +145,14 @@ class StageInstance {
 
   // Runs it (whole-stage run, or list/process/finalize for per-item stages
   // with a thread pool of options.threads). Throws Error with the plugin's
-  // message on failure; a failing item fails the run after the others finish.
+  // message on failure; a failing item fails the run after the others finish
+  // (finished items stay journaled, so a rerun retries only the failed ones).
+  // Throws Cancelled when options.cancel was raised.
+  // Per-item: items already in a journal of any shard are skipped; finalize
+  // runs in the call that finds every item of every shard journaled (two
+  // shards finishing at the same moment may both run it: it must be
+  // idempotent, which atomic writes give). Parallel items get threads = 1
+  // each; a lone worker (LF_STAGE_SERIAL_ITEMS, or one item) gets them all.
   RunResult Run(const RunOptions& options);
 
   // In-process component function table (e.g. LfRegistrationInterface), or
