@@ -372,7 +372,8 @@ void CheckDestination(const fs::path& src, const fs::path& dst, bool overwrite) 
   if (fs::exists(dst, ec)) {
     if (!IsDir(dst)) throw InputError(dst.string(), 0, "", "exists and is not a folder");
     if (!overwrite && !fs::is_empty(dst, ec))
-      throw InputError(dst.string(), 0, "", "exists and is not empty (use overwrite)");
+      throw InputError(dst.string(), 0, "",
+                       "exists and is not empty (set overwrite; --overwrite on the command line)");
   }
 }
 
