@@ -160,7 +160,11 @@ Trajectory PlanTrajectory(const SceneSpec& spec, const SimOptions& o, const Sequ
   return Drive(waypoints, spins, yaw, o.limits, plan.duration_s, wheels.radius);
 }
 
-std::string Folder(const SimOptions& o, const std::string& split) { return o.layout == "splits" ? split : ""; }
+// Kapture root of a split, relative to the output: the mapping kapture is the
+// output itself, queries live in validation/ and test/ (layout "splits").
+std::string Folder(const SimOptions& o, const std::string& split) {
+  return o.layout == "splits" && split != "mapping" ? split : "";
+}
 
 void WriteImage(const fs::path& path, const RenderedImage& img, const std::string& format) {
   cv::Mat rgb(img.height, img.width, CV_8UC3, const_cast<uint8_t*>(img.rgb.data())), bgr;
@@ -331,7 +335,7 @@ DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int thr
       const Timestamp ts = ToMicros(plan.t0_us, cap.stamp);
       const std::string stem = plan.name + "/" + cam.id + "/" + std::to_string(ts);
       WriteImage(data / (stem + "." + o.image_format), img, o.image_format);
-      if (o.masks) WriteMask(truth / "masks" / folder / (stem + ".png"), img);
+      if (o.masks) WriteMask(truth / "masks" / plan.split / (stem + ".png"), img);
       person_fraction[i] = img.PersonFraction();
       {
         std::lock_guard<std::mutex> lock(rows_mutex);

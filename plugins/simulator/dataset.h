@@ -32,7 +32,7 @@ struct SimOptions {
   bool lidar = true;                // write LiDAR scans
   bool masks = true;                // write person masks
   std::string image_format = "jpg"; // jpg | png
-  std::string layout = "splits";    // splits: mapping/, validation/, test/ kaptures; single: one kapture
+  std::string layout = "splits";    // splits: mapping kapture at the root, queries in validation/, test/; single: one kapture
   int texture_size = 512;           // texels per texture side
   bool Check(std::string* why) const;
 };

@@ -62,7 +62,7 @@ DatasetSummary* TinyDataset::summary_ = nullptr;
 TEST_F(TinyDataset, WritesThreeKapturesWithEveryRecordFile) {
   ASSERT_EQ(summary_->sequences.size(), 3u);
   for (const char* split : {"mapping", "validation", "test"}) {
-    const fs::path s = *dir_ / split / "sensors";
+    const fs::path s = *dir_ / (std::string(split) == "mapping" ? "" : split) / "sensors";
     const auto sensors = ReadRows(s / "sensors.txt");
     ASSERT_EQ(sensors.size(), 13u) << split;  // 10 cameras, 2 lidars, wheels
     EXPECT_EQ(sensors[0][2], "camera");
@@ -87,7 +87,7 @@ TEST_F(TinyDataset, WritesThreeKapturesWithEveryRecordFile) {
 }
 
 TEST_F(TinyDataset, CameraPosesComposeFromRigPosesAndExtrinsics) {
-  const fs::path s = *dir_ / "mapping" / "sensors";
+  const fs::path s = *dir_ / "sensors";
   std::map<std::string, Pose> cam_from_rig;
   for (const auto& r : ReadRows(s / "rigs.txt")) cam_from_rig[r[1]] = PoseOf(r, 2);
   std::map<long long, Pose> rig_poses;
@@ -130,15 +130,15 @@ TEST(Dataset, DeterministicWhateverTheThreads) {
   GenerateDataset(o, b, 2);
   for (const char* f : {"sensors.txt", "rigs.txt", "trajectories.txt", "records_camera.txt", "records_lidar.txt",
                         "records_wheel_encoder.txt"})
-    EXPECT_EQ(Slurp(a / "mapping/sensors" / f), Slurp(b / "mapping/sensors" / f)) << f;
-  const auto cams = ReadRows(a / "mapping/sensors/records_camera.txt");
+    EXPECT_EQ(Slurp(a / "sensors" / f), Slurp(b / "sensors" / f)) << f;
+  const auto cams = ReadRows(a / "sensors/records_camera.txt");
   for (size_t i = 0; i < cams.size(); i += 5)
-    EXPECT_EQ(Slurp(a / "mapping/sensors/records_data" / cams[i][2]), Slurp(b / "mapping/sensors/records_data" / cams[i][2]));
+    EXPECT_EQ(Slurp(a / "sensors/records_data" / cams[i][2]), Slurp(b / "sensors/records_data" / cams[i][2]));
   // Another seed gives another recording.
   o.seed = 10;
   const fs::path c = locforge::testing::MakeTempDir("sim_det_c");
   GenerateDataset(o, c, 2);
-  EXPECT_NE(Slurp(a / "mapping/sensors/trajectories.txt"), Slurp(c / "mapping/sensors/trajectories.txt"));
+  EXPECT_NE(Slurp(a / "sensors/trajectories.txt"), Slurp(c / "sensors/trajectories.txt"));
   for (const auto& d : {a, b, c}) fs::remove_all(d);
 }
 
