@@ -85,7 +85,9 @@ bool CsvReader::Next(CsvRow* row) {
       if (comment.compare(0, sizeof(kTag) - 1, kTag) == 0) {
         version_ = Trim(comment.substr(sizeof(kTag) - 1));
       }
-      comments_.push_back(std::move(comment));
+      // Only the first few matter (version, column header); a file of
+      // comments must not grow memory.
+      if (comments_.size() < 16) comments_.push_back(std::move(comment));
       continue;
     }
     row->line = line_;

@@ -559,8 +559,10 @@ FeatureInfo ParseFeatureInfo(std::istream& in, FeatureKind kind, const std::stri
   CsvRow row;
   if (!csv.Next(&row)) throw InputError(display_name, 0, "", "no data line (expected " +
                                                                  std::string(FeatureColumns(kind)) + ")");
+  // kapture 1.0 wrote "name, dtype, dsize" for every kind; 1.1 added the
+  // keypoints and metric types.
   const size_t n = kind == FeatureKind::kKeypoints ? 3 : (kind == FeatureKind::kDescriptors ? 5 : 4);
-  CheckFieldCount(row, csv.name(), n, static_cast<int64_t>(n), FeatureColumns(kind));
+  CheckFieldCount(row, csv.name(), 3, static_cast<int64_t>(n), FeatureColumns(kind));
   FeatureInfo info;
   info.kind = kind;
   info.name = Field(row, 0);
@@ -573,10 +575,10 @@ FeatureInfo ParseFeatureInfo(std::istream& in, FeatureKind kind, const std::stri
     throw InputError(csv.name(), row.line, "dsize",
                      "must be in 1..16777216, got " + std::to_string(info.dsize));
   if (kind == FeatureKind::kDescriptors) {
-    info.keypoints_type = Field(row, 3);
-    info.metric_type = Field(row, 4);
+    if (row.fields.size() > 3) info.keypoints_type = Field(row, 3);
+    if (row.fields.size() > 4) info.metric_type = Field(row, 4);
   } else if (kind == FeatureKind::kGlobalFeatures) {
-    info.metric_type = Field(row, 3);
+    if (row.fields.size() > 3) info.metric_type = Field(row, 3);
   }
   CsvRow extra;
   if (csv.Next(&extra))
@@ -602,6 +604,8 @@ void WriteFeatureInfo(const fs::path& path, const FeatureInfo& info) {
     } else if (info.kind == FeatureKind::kGlobalFeatures) {
       f.push_back(info.metric_type);
     }
+    // A 1.0 file without the 1.1 columns stays without them.
+    while (f.size() > 3 && f.back().empty()) f.pop_back();
     out << JoinCsv(f) << "\n";
   });
 }

@@ -458,7 +458,12 @@ CopyReport CopyKapture(const fs::path& src, const fs::path& dst, const CopyOptio
   k.points3d();
 
   int64_t missing = 0;
-  for (const fs::path& file : FilesUnder(src)) {
+  // Walked, not listed: a dataset of 100k images must not be held in memory.
+  for (auto it = fs::recursive_directory_iterator(src); it != fs::recursive_directory_iterator();
+       ++it) {
+    std::error_code type_ec;
+    if (!it->is_regular_file(type_ec)) continue;
+    const fs::path& file = it->path();
     const std::string rel = Rel(file, src);
     // A link may not lead out of the dataset.
     std::error_code ec;

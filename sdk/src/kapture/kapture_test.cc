@@ -290,3 +290,59 @@ TEST(KaptureSamples, InspectReportsCountsAndProblems) {
 
 }  // namespace
 }  // namespace locforge::kapture
+
+namespace locforge::kapture {
+namespace {
+
+// kapture 1.0 kept a single feature type directly in reconstruction/<kind>/
+// and observations without a keypoints type column.
+TEST(KaptureLegacy, Reads10LayoutAndCopyKeepsIt) {
+  const fs::path root = locforge::testing::MakeTempDir("kapture_v10") / "k";
+  WriteFileAtomic(root / layout::kSensors, "# kapture format: 1.0\ncam, , camera, SIMPLE_PINHOLE, 64, 48, 50, 32, 24\n");
+  WriteFileAtomic(root / layout::RecordsFile("camera"), "# kapture format: 1.0\n1, cam, a.jpg\n2, cam, sub/b.jpg\n");
+  WriteFileAtomic(root / "reconstruction/keypoints/keypoints.txt", "# kapture format: 1.0\nsift, float32, 2\n");
+  WriteFileAtomic(root / "reconstruction/descriptors/descriptors.txt", "# kapture format: 1.0\nsift, uint8, 4\n");
+  WriteFeatureFile(root / "reconstruction/keypoints/a.jpg.kpt",
+                   FeatureArray::From(DType::kFloat32, 2, std::vector<float>{1, 2, 3, 4}));
+  WriteFeatureFile(root / "reconstruction/keypoints/sub/b.jpg.kpt",
+                   FeatureArray::From(DType::kFloat32, 2, std::vector<float>{5, 6}));
+  WriteFeatureFile(root / "reconstruction/descriptors/a.jpg.desc",
+                   FeatureArray::From(DType::kUint8, 4, std::vector<uint8_t>{1, 2, 3, 4, 5, 6, 7, 8}));
+  WriteFeatureFile(root / "reconstruction/matches/a.jpg.overlapping/sub/b.jpg.matches",
+                   MatchesToArray({{1, 0, 0.5}}));
+  WriteFileAtomic(root / layout::kObservations, "# kapture format: 1.0\n0, a.jpg, 1, sub/b.jpg, 0\n");
+
+  Kapture k(root);
+  const FeatureSet& kp = k.GetFeatureSet(FeatureKind::kKeypoints, "sift");
+  EXPECT_TRUE(kp.legacy_layout);
+  EXPECT_EQ(k.FeatureImages(FeatureKind::kKeypoints, "sift"),
+            (std::vector<std::string>{"a.jpg", "sub/b.jpg"}));
+  EXPECT_EQ(k.ReadKeypoints("sift", "sub/b.jpg").At(0, 1), 6.0);
+  EXPECT_EQ(k.ReadDescriptors("sift", "a.jpg").rows, 2);
+  EXPECT_EQ(k.MatchesTypes(), (std::vector<std::string>{"sift"}));
+  EXPECT_EQ(k.MatchPairs("sift"),
+            (std::vector<std::pair<std::string, std::string>>{{"a.jpg", "sub/b.jpg"}}));
+  const auto m = k.ReadMatches("sift", "sub/b.jpg", "a.jpg");
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m[0].index1, 0.0);  // swapped to the requested order
+  EXPECT_EQ(m[0].index2, 1.0);
+  ASSERT_EQ(k.observations().size(), 1u);
+  EXPECT_EQ(k.observations()[0].keypoints_type, "sift");
+
+  const fs::path dst = root.parent_path() / "copy";
+  const CopyReport r = CopyKapture(root, dst);
+  EXPECT_EQ(r.binary_files, 4);
+  EXPECT_EQ(r.other_files, 0);
+  for (const char* rel : {"reconstruction/keypoints/a.jpg.kpt", "reconstruction/keypoints/sub/b.jpg.kpt",
+                          "reconstruction/matches/a.jpg.overlapping/sub/b.jpg.matches"})
+    EXPECT_EQ(ReadFile(root / rel), ReadFile(dst / rel)) << rel;
+  EXPECT_EQ(ReadFile(dst / "reconstruction/descriptors/descriptors.txt"),
+            "# kapture format: 1.1\n# name, dtype, dsize, keypoints_type, metric_type\nsift, uint8, 4\n");
+  Kapture c(dst);
+  EXPECT_EQ(c.observations()[0].keypoints_type, "sift");
+  EXPECT_EQ(c.observations()[0].features, k.observations()[0].features);
+  fs::remove_all(root.parent_path());
+}
+
+}  // namespace
+}  // namespace locforge::kapture

@@ -52,8 +52,8 @@ class CsvReader {
   const std::string& name() const { return name_; }
   // Version from a "# kapture format: X" header seen so far ("" if none).
   const std::string& version() const { return version_; }
-  // Comment lines seen so far, without the leading '#' and blanks (the
-  // column header of a generic records file is the last one of these).
+  // The first 16 comment lines seen so far, without the leading '#' and
+  // blanks (the column header of a records file is among these).
   const std::vector<std::string>& comments() const { return comments_; }
 
  private:
