@@ -140,9 +140,9 @@ bool PrepareGraph(const GraphArgs& args, runtime::Registry* registry,
 
 std::atomic<bool> g_cancel{false};
 
-extern "C" void OnInterrupt(int) {
+extern "C" void OnInterrupt(int signal) {
   g_cancel.store(true);
-  std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C kills at once
+  std::signal(signal, SIG_DFL);  // a second Ctrl-C kills at once
 }
 
 }  // namespace
@@ -191,6 +191,8 @@ int RunCommand(const Args& args) {
   std::string command_line = "locforge run";
   for (const auto& a : args) command_line += " " + a;
   reporter.FileOnly(command_line);
+  for (const auto& p : registry.problems())
+    reporter.FileOnly("warning: plugin " + p.file.string() + " refused and skipped: " + p.message);
 
   ExecOptions options;
   options.threads = ga.threads > 0 ? ga.threads
@@ -201,6 +203,7 @@ int RunCommand(const Args& args) {
   options.cancel = &g_cancel;
   g_cancel.store(false);
   std::signal(SIGINT, OnInterrupt);
+  std::signal(SIGTERM, OnInterrupt);
   Executor executor(*workspace, reporter, options);
   ExecResult result;
   try {
@@ -210,6 +213,7 @@ int RunCommand(const Args& args) {
     result.failure = e.what();
   }
   std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
 
   const bool matrix = resolved.size() > 1 || !resolved.front().variant.empty();
   const std::string table = FormatTable(result, matrix);

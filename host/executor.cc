@@ -78,6 +78,11 @@ ExecResult Executor::Run(const std::vector<ResolvedGraph>& variants) {
       if (!unavailable.count(sink))
         result.outputs.push_back(workspace_.LinkPath(graph.variant, sink).string());
   }
+  if (IsCancelled(options_.cancel) && !result.failed) {
+    // Interrupted between nodes (or a stage that does not poll the flag).
+    result.failed = true;
+    result.failure = "interrupted; finished nodes and items are kept, run again to resume";
+  }
   return result;
 }
 
