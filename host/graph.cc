@@ -45,6 +45,36 @@ std::string JoinNames(const std::vector<std::string>& names) {
   return out.empty() ? "none" : out;
 }
 
+// `${name}` is not a valid plain scalar inside a YAML flow mapping
+// (`{count: ${count}}`), so before parsing each one becomes `$<name>`, which
+// is, with the same length (positions stay exact); scalars are read back
+// through Unmask().
+std::string Mask(const std::string& text) {
+  std::string out = text;
+  for (size_t pos = out.find("${"); pos != std::string::npos; pos = out.find("${", pos + 1)) {
+    size_t end = pos + 2;
+    while (end < out.size() && (std::isalnum(static_cast<unsigned char>(out[end])) || out[end] == '_'))
+      ++end;
+    if (end == pos + 2 || end >= out.size() || out[end] != '}') continue;
+    out[pos + 1] = '<';
+    out[end] = '>';
+  }
+  return out;
+}
+
+std::string Unmask(const std::string& scalar) {
+  std::string out = scalar;
+  for (size_t pos = out.find("$<"); pos != std::string::npos; pos = out.find("$<", pos + 1)) {
+    size_t end = pos + 2;
+    while (end < out.size() && (std::isalnum(static_cast<unsigned char>(out[end])) || out[end] == '_'))
+      ++end;
+    if (end == pos + 2 || end >= out.size() || out[end] != '>') continue;
+    out[pos + 1] = '{';
+    out[end] = '}';
+  }
+  return out;
+}
+
 // A value as written, before substitution, with its provenance.
 struct RawValue {
   Value value;
@@ -120,7 +150,7 @@ bool GraphParser::ReadRaw(const YAML::Node& node, const std::string& what, RawVa
   out->where = At(node);
   out->value = Value{};
   if (node.IsScalar()) {
-    out->value.items.push_back(node.Scalar());
+    out->value.items.push_back(Unmask(node.Scalar()));
     return true;
   }
   if (node.IsSequence()) {
@@ -130,7 +160,7 @@ bool GraphParser::ReadRaw(const YAML::Node& node, const std::string& what, RawVa
         Fail(At(item), what + ": expected a scalar list element");
         return false;
       }
-      out->value.items.push_back(item.Scalar());
+      out->value.items.push_back(Unmask(item.Scalar()));
     }
     return true;
   }
@@ -349,7 +379,7 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
     } else {
       node.stage_where = At(stage);
       bool cli = false;
-      node.stage = Substitute(Value{{stage.Scalar()}, false}, node.stage_where, &cli).scalar();
+      node.stage = Substitute(Value{{Unmask(stage.Scalar())}, false}, node.stage_where, &cli).scalar();
     }
     if (const YAML::Node params = body["params"]) {
       if (!params.IsMap() && !params.IsNull()) {
@@ -430,7 +460,7 @@ bool GraphParser::Parse(const std::string& text, const std::vector<Override>& se
   const size_t before = errors_->size();
   YAML::Node root;
   try {
-    root = YAML::Load(text);
+    root = YAML::Load(Mask(text));
   } catch (const YAML::Exception& e) {
     Fail(At(e.mark), "YAML syntax: " + e.msg);
     return false;

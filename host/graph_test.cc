@@ -72,6 +72,20 @@ nodes:
   EXPECT_EQ(a.params.at("count").value_where.ToString(), "/graphs/g.yaml:9:21");
 }
 
+TEST(GraphParse, UnquotedVariablesInFlowMappings) {
+  // `{count: ${count}}` is not valid YAML as such; the graph format accepts it.
+  const Parsed p = Parse("locforge: 1\nvars: {n: 8, s: [1, 2]}\nnodes:\n"
+                         "  a: {stage: source/images, params: {count: ${n}, scales: ${s}, tag: x${n}y}}\n"
+                         "  b: {stage: source/images, params: {count: ${nn}}}\n");
+  EXPECT_FALSE(p.ok);
+  const NodeSpec& a = NodeOf(p.graph, "a");
+  EXPECT_EQ(a.params.at("count").value.scalar(), "8");
+  EXPECT_EQ(a.params.at("scales").value.items, (std::vector<std::string>{"1", "2"}));
+  EXPECT_EQ(a.params.at("tag").value.scalar(), "x8y");
+  EXPECT_EQ(p.Text(), "/graphs/g.yaml:5:45: error: unknown variable 'nn' (did you mean 'n'?); "
+                      "expected one of: n, s\n");
+}
+
 TEST(GraphParse, SetOverridesVarsAndNodeParams) {
   const Parsed p = Parse(R"(locforge: 1
 vars: {n: 8}
