@@ -211,6 +211,36 @@ TEST_F(ConvertTest, PixelConventionIsTheIdentity) {
             p);
 }
 
+// The geometric side of convention.h: kapture's points3d projected with its
+// poses and camera land on its keypoints best with no half-pixel shift.
+TEST_F(ConvertTest, MaupertuisReprojectsBestWithoutPixelShift) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(root, kMaupertuis);
+  ExportToColmap(kapture::Kapture(root / "kapture"), tmp_ / "db.db", tmp_ / "model");
+  const Reconstruction model = ReadModelText(tmp_ / "model");
+  const Camera& camera = model.cameras.at(0).camera;
+  auto mean_error = [&](double shift) {
+    double sum = 0;
+    int n = 0;
+    for (const ModelPoint3D& p : model.points3d) {
+      for (const TrackElement& e : p.track) {
+        const ModelImage& image = *model.FindImage(e.image_id);
+        const Eigen::Vector2d kapture_xy = image.points2d[e.point2d_idx].xy;
+        sum += (camera.Project(image.CameraFromWorld() * p.xyz) -
+                (kapture_xy + Eigen::Vector2d::Constant(shift)))
+                   .norm();
+        ++n;
+      }
+    }
+    return sum / n;
+  };
+  const double none = mean_error(0), plus = mean_error(0.5), minus = mean_error(-0.5);
+  std::cout << "mean reprojection error, kapture keypoints shifted by 0 / +0.5 / -0.5 px: " << none
+            << " / " << plus << " / " << minus << "\n";
+  EXPECT_LT(none, 0.4);
+  EXPECT_LT(none, plus);
+  EXPECT_LT(none, minus);
+}
+
 // A two-camera rig: per-camera poses are T_sensor_rig * T_rig_world.
 TEST_F(ConvertTest, ExportComposesRigPoses) {
   const fs::path root = tmp_ / "rig";

@@ -13,8 +13,10 @@
 // 6 float32), and the points2D of colmap/reconstruction/images.txt equal the
 // kapture keypoints (to the 6 digits printed); the camera's principal point
 // (959.5, 539.5) is width/2, height/2 of the 1919 x 1079 image, COLMAP's
-// corner-origin default; our export re-triangulated by `colmap
-// point_triangulator` reprojects with sub-pixel error.
+// corner-origin default; kapture's points3d projected with its poses and
+// camera land on its keypoints with a mean error of 0.346 px unshifted,
+// 0.798 px shifted by +0.5 and 0.792 px by -0.5; our export re-triangulated
+// by `colmap point_triangulator` reprojects with 0.358 px.
 //
 // Extractors that put the first pixel centre at (0, 0) (e.g. some R2D2
 // exports) must be shifted by the caller before export; this SDK never
