@@ -164,8 +164,13 @@ std::vector<runtime::PluginProblem> LoadPlugins(runtime::Registry* registry,
   for (const auto& folder : runtime::Registry::DefaultSearchPath())
     if (loaded.insert(canonical(folder)).second) registry->LoadFolder(folder);
   const size_t default_problems = registry->problems().size();
-  for (const auto& folder : extra)
-    if (loaded.insert(canonical(folder)).second) registry->LoadFolder(folder);
+  for (const auto& folder : extra) {
+    std::error_code ec;
+    if (!fs::is_directory(folder, ec))
+      std::cerr << "warning: plugin folder " << folder.string() << " does not exist\n";
+    else if (loaded.insert(canonical(folder)).second)
+      registry->LoadFolder(folder);
+  }
   const auto& problems = registry->problems();
   for (size_t i = 0; i < default_problems; ++i)
     std::cerr << "warning: plugin " << problems[i].file.string()

@@ -104,7 +104,8 @@ bool PrepareGraph(const GraphArgs& args, runtime::Registry* registry,
     std::error_code ec;
     if (!fs::is_directory(folder, ec))
       errors.push_back({where, "plugin folder '" + folder.string() + "' does not exist"});
-    extra.push_back(folder);
+    else
+      extra.push_back(folder);
   }
   for (const auto& problem : LoadPlugins(registry, extra))
     errors.push_back({{args.graph}, "plugin " + problem.file.string() + " refused: " +

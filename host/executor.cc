@@ -4,6 +4,8 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <optional>
 #include <set>
 
@@ -39,6 +41,17 @@ fs::path LockFile(const fs::path& dir, const std::string& suffix) {
   const fs::path locks = dir.parent_path().parent_path() / "locks";
   fs::create_directories(locks);
   return locks / (dir.filename().string() + suffix);
+}
+
+// Items of a complete node, from its manifest (0 when not per-item).
+uint64_t ManifestItems(const fs::path& dir) {
+  std::ifstream in(dir / kCompleteMarker);
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t pos = line.find("\"items\": ");
+    if (pos != std::string::npos) return std::strtoull(line.c_str() + pos + 9, nullptr, 10);
+  }
+  return 0;
 }
 
 NodeReport NewReport(const std::string& variant, const ResolvedNode& node) {
@@ -94,12 +107,14 @@ NodeReport Executor::RunNode(const ResolvedGraph& graph, const ResolvedNode& nod
     // The same node (same key) in an earlier variant of this run.
     report.status = known->second.folder.empty() ? "skipped" : "cached";
     report.folder = known->second.folder.string();
+    if (!report.folder.empty()) report.items = ManifestItems(report.folder);
     return report;
   }
   const fs::path dir = workspace_.NodeDir(node.name, key);
   Done done;
   if (!options_.force && Workspace::IsComplete(dir)) {
     done = {"cached", dir};
+    report.items = ManifestItems(dir);
     reporter_.FileOnly(label + ": cached in " + dir.string());
   } else {
     done = Compute(label, graph, node, key, dir, &report, result);
@@ -178,7 +193,7 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
                              r.items_total, report->seconds);
       return {"partial", {}};
     }
-    Publish(partial, dir, Manifest(node, key, inputs, report->seconds));
+    Publish(partial, dir, Manifest(node, key, inputs, r.items_total, report->seconds));
     status = r.items_resumed > 0 ? "resumed" : "ran";
     reporter_.NodeFinished(label, status, r.items_total, report->seconds);
     return {status, dir};
@@ -198,7 +213,7 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
 }
 
 std::string Executor::Manifest(const ResolvedNode& node, const std::string& key,
-                               const std::vector<runtime::InputArtifact>& inputs,
+                               const std::vector<runtime::InputArtifact>& inputs, uint64_t items,
                                double seconds) const {
   const LfPluginInfo* plugin = node.stage->plugin->info;
   std::string j = "{\n";
@@ -223,7 +238,8 @@ std::string Executor::Manifest(const ResolvedNode& node, const std::string& key,
   }
   char secs[32];
   std::snprintf(secs, sizeof(secs), "%.3f", seconds);
-  j += "\n  ],\n  \"finished\": " + JsonString(UtcNow()) + ",\n  \"seconds\": " + secs + "\n}\n";
+  j += "\n  ],\n  \"finished\": " + JsonString(UtcNow()) + ",\n  \"items\": " +
+       std::to_string(items) + ",\n  \"seconds\": " + secs + "\n}\n";
   return j;
 }
 

@@ -59,7 +59,8 @@ class Executor {
                const fs::path& dir, NodeReport* report, ExecResult* result);
   std::vector<runtime::InputArtifact> Inputs(const ResolvedGraph& graph, const ResolvedNode& node);
   std::string Manifest(const ResolvedNode& node, const std::string& key,
-                       const std::vector<runtime::InputArtifact>& inputs, double seconds) const;
+                       const std::vector<runtime::InputArtifact>& inputs, uint64_t items,
+                       double seconds) const;
 
   Workspace& workspace_;
   Reporter& reporter_;
