@@ -73,7 +73,7 @@ TEST_F(RunColmapTest, FailureReportsStatusAndColmapsErrorLines) {
 }
 
 TEST_F(RunColmapTest, TimeoutKillsTheChild) {
-  options_.executable = FakeColmap("sleep 30");
+  options_.executable = FakeColmap("while :; do :; done");  // builtins only: no PATH needed
   options_.timeout_s = 0.3;
   const std::string e = ErrorOf([&] { RunColmap({}, options_); });
   EXPECT_NE(e.find("timed out"), std::string::npos) << e;

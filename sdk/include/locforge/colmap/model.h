@@ -85,7 +85,7 @@ struct Reconstruction {
   std::vector<ModelImage> images;     // file order; all registered
   std::vector<ModelPoint3D> points3d; // file order
 
-  // Index lookups (linear build, O(1) query); null when absent.
+  // Lookups by linear scan (build a map for many queries); null when absent.
   const ModelCamera* FindCamera(CameraId id) const;
   const ModelImage* FindImage(ImageId id) const;
   const ModelImage* FindImageByName(const std::string& name) const;
