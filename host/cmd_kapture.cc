@@ -1,4 +1,5 @@
 // `locforge kapture info DIR` and `locforge kapture copy SRC DST`.
+#include <algorithm>
 #include <iostream>
 #include <stdexcept>
 
@@ -94,8 +95,11 @@ int Copy(const Args& args) {
             << " text files (" << report.records << " records), " << report.binary_files
             << " feature/matches files, " << report.data_files << " record data files, "
             << report.other_files << " other files\n";
-  for (const std::string& m : report.missing_data_files)
-    std::cout << "  missing in source: " << m << "\n";
+  const size_t shown = std::min<size_t>(report.missing_data_files.size(), 10);
+  for (size_t i = 0; i < shown; ++i)
+    std::cout << "  missing in source: " << report.missing_data_files[i] << "\n";
+  if (report.missing_data_files.size() > shown)
+    std::cout << "  ... " << report.missing_data_files.size() - shown << " more listed\n";
   for (const std::string& n : report.notes) std::cout << "  note: " << n << "\n";
   return 0;
 }

@@ -102,13 +102,17 @@ double ParseDouble(const std::string& text, const std::string& file, int64_t lin
                    const std::string& field) {
   const std::string s = Trim(text);
   if (s.empty()) throw InputError(file, line, field, "expected a number, got an empty field");
-  // Python's float() spellings of the special values.
-  std::string lower;
-  for (char c : s) lower += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  const std::string body = (lower[0] == '+' || lower[0] == '-') ? lower.substr(1) : lower;
-  if (body == "nan" || body == "inf" || body == "infinity") {
-    const double v = body == "nan" ? std::nan("") : HUGE_VAL;
-    return lower[0] == '-' ? -v : v;
+  // Python's float() spellings of the special values (checked only when a
+  // letter starts the number, to keep the common path cheap).
+  const size_t lead = (s[0] == '+' || s[0] == '-') ? 1 : 0;
+  if (lead < s.size() && std::isalpha(static_cast<unsigned char>(s[lead]))) {
+    std::string body;
+    for (size_t i = lead; i < s.size(); ++i)
+      body += static_cast<char>(std::tolower(static_cast<unsigned char>(s[i])));
+    if (body == "nan" || body == "inf" || body == "infinity") {
+      const double v = body == "nan" ? std::nan("") : HUGE_VAL;
+      return s[0] == '-' ? -v : v;
+    }
   }
   const char* begin = s.data();
   const char* end = s.data() + s.size();

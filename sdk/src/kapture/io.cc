@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <unordered_set>
 
 #include "locforge/error.h"
 
@@ -435,26 +436,56 @@ std::vector<std::string> Format(const GenericRecord& r) {
   return f;
 }
 
-template <class Record>
-void CheckDataRoot(const Record&, const fs::path&, const std::string&, int64_t) {}
-void CheckDataRoot(const DataRecord& r, const fs::path& root, const std::string& file,
-                   int64_t line) {
-  if (!root.empty()) SafeJoin(root, r.path, Origin(file, line));
-}
+}  // namespace
 
+// SafeJoin resolves every component of a path (several stats); records of
+// one folder share their parent, so each folder is resolved once and a
+// record then costs one lstat (is the file itself a link?).
+template <class Record>
+struct RecordsReader<Record>::PathCheck {
+  fs::path root;
+  std::unordered_set<std::string> safe_dirs;
+
+  void Check(const std::string& relative, const std::string& origin) {
+    if (root.empty()) return;
+    const size_t slash = relative.find_last_of('/');
+    if (slash != std::string::npos) {
+      const std::string dir = relative.substr(0, slash);
+      if (!safe_dirs.count(dir)) {
+        SafeJoin(root, dir, origin);
+        if (safe_dirs.size() < 1000000) safe_dirs.insert(dir);
+      }
+    }
+    std::error_code ec;
+    if (fs::is_symlink(root / relative, ec) || relative.find('\\') != std::string::npos)
+      SafeJoin(root, relative, origin);
+  }
+};
+
+namespace {
+template <class Record, class Check>
+void CheckDataRoot(const Record&, Check*, const std::string&, int64_t) {}
+template <class Check>
+void CheckDataRoot(const DataRecord& r, Check* check, const std::string& file, int64_t line) {
+  check->Check(r.path, Origin(file, line));
+}
 }  // namespace
 
 template <class Record>
 RecordsReader<Record>::RecordsReader(const fs::path& path, const std::string& display_name,
                                      fs::path records_data_root)
     : csv_(std::make_unique<CsvReader>(path, display_name)),
-      data_root_(std::move(records_data_root)) {}
+      paths_(std::make_unique<PathCheck>()) {
+  paths_->root = std::move(records_data_root);
+}
 
 template <class Record>
 RecordsReader<Record>::RecordsReader(std::istream& in, const std::string& display_name,
                                      fs::path records_data_root)
     : csv_(std::make_unique<CsvReader>(in, display_name)),
-      data_root_(std::move(records_data_root)) {}
+      paths_(std::make_unique<PathCheck>()) {
+  paths_->root = std::move(records_data_root);
+}
 
 template <class Record>
 RecordsReader<Record>::RecordsReader(RecordsReader&&) noexcept = default;
@@ -468,7 +499,7 @@ bool RecordsReader<Record>::Next(Record* record) {
   CsvRow row;
   if (!csv_->Next(&row)) return false;
   ParseRow(row, csv_->name(), record);
-  CheckDataRoot(*record, data_root_, csv_->name(), row.line);
+  CheckDataRoot(*record, paths_.get(), csv_->name(), row.line);
   return true;
 }
 

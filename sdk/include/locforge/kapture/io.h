@@ -81,9 +81,11 @@ class RecordsReader {
   // "" if none: GenericRecord writers reuse it.
   std::string ColumnsComment() const;
 
+  struct PathCheck;  // checked folders, so a path costs ~one stat, not one per component
+
  private:
   std::unique_ptr<CsvReader> csv_;
-  fs::path data_root_;
+  std::unique_ptr<PathCheck> paths_;
 };
 
 // Writes records_<type>.txt incrementally; the file appears on Commit()
