@@ -39,8 +39,13 @@ std::string Quote(const char* s) { return s ? "'" + std::string(s) + "'" : "NULL
 // be larger than ours).
 template <typename T>
 const T* Element(const T* first, uint32_t stride, uint32_t i) {
-  return reinterpret_cast<const T*>(reinterpret_cast<const char*>(first) +
-                                    static_cast<size_t>(stride) * i);
+  const T* element = reinterpret_cast<const T*>(reinterpret_cast<const char*>(first) +
+                                                static_cast<size_t>(stride) * i);
+  if (element->struct_size != stride)
+    throw Refused{"element #" + std::to_string(i) + " of an array has struct_size " +
+                  std::to_string(element->struct_size) + ", the first has " +
+                  std::to_string(stride) + "; all elements of an array must have the same size"};
+  return element;
 }
 
 // The stride of a plugin array: its first element's struct_size, which must
