@@ -187,7 +187,8 @@ void DecorateFace(const Eigen::Vector3d& face_center, const Eigen::Vector3d& nor
   std::uniform_real_distribution<double> u01(0, 1);
   const double yaw = std::atan2(normal.y(), normal.x()) * 180 / kPi;
   const Eigen::Vector3d along = Eigen::Vector3d::UnitZ().cross(normal).normalized();
-  const Eigen::Vector3d base = face_center + 0.02 * normal;  // just off the wall
+  Eigen::Vector3d base = face_center + 0.02 * normal;  // just off the wall
+  base.z() = 0;                                        // heights below are above the floor
   double pos = -0.5 * face_width + 0.4;
   while (pos < 0.5 * face_width - 1.2) {
     const double kind = u01(rng);

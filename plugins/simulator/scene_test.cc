@@ -149,3 +149,19 @@ TEST(Scene, BadYamlNamesFileLineAndField) {
 
 }  // namespace
 }  // namespace locforge::sim
+
+namespace locforge::sim {
+namespace {
+
+TEST(Scene, PanelsHangBetweenFloorAndCeiling) {
+  FloorOptions o;
+  o.blocks_x = 3;
+  const SceneSpec s = GenerateFloor(o, 5);
+  for (const auto& p : s.panels) {
+    EXPECT_GE(p.center.z() - p.height / 2, -1e-9) << p.material.texture;
+    EXPECT_LE(p.center.z() + p.height / 2, s.height) << p.material.texture;
+  }
+}
+
+}  // namespace
+}  // namespace locforge::sim
