@@ -203,6 +203,20 @@ TEST_F(ConvertTest, ExportThenImportGivesBackTheKapture) {
   EXPECT_THROW(ImportFromColmap(tmp_ / "db.db", tmp_ / "model", tmp_ / "back"), Error);
 }
 
+TEST_F(ConvertTest, ImportOfAModelAlone) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(root, kMaupertuis);
+  const ImportReport r = ImportFromColmap("", root / "colmap/reconstruction", tmp_ / "k");
+  EXPECT_EQ(r.images, 4);
+  EXPECT_EQ(r.posed_images, 4);
+  EXPECT_EQ(r.keypoint_images, 0);
+  EXPECT_EQ(r.points3d, 1039);
+  const kapture::Kapture k(tmp_ / "k");
+  EXPECT_EQ(k.trajectories().size(), 4u);
+  EXPECT_EQ(k.sensors().Find("cam_00001")->camera->params, (std::vector<double>{1847.53, 959.5, 539.5}));
+  EXPECT_TRUE(k.FeatureSets(FeatureKind::kKeypoints).empty());
+  EXPECT_EQ(k.observations().size(), 1039u);
+}
+
 TEST_F(ConvertTest, PixelConventionIsTheIdentity) {
   const Eigen::Vector2d p(0.5, 1079.25);
   EXPECT_EQ(ConvertPixel(p, PixelDirection::kKaptureToColmap), p);

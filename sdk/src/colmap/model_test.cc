@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <random>
 #include <sstream>
 
 #include "locforge/colmap/run.h"
@@ -321,6 +322,62 @@ TEST_F(MalformedModel, ValidateFindsBrokenReferences) {
   m.images[1].points2d[0].point3d_id = 99;
   EXPECT_NE(m.Validate().find("missing point3D 99"), std::string::npos);
   EXPECT_NE(ErrorOf([&] { ReadModel(tmp_ / "nothing"); }).find("no COLMAP model"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace locforge::colmap
+
+namespace locforge::colmap {
+namespace {
+
+// Random corruption of every file never crashes or over-allocates: the
+// model reads, or an InputError names the file.
+TEST(ColmapModelFuzz, CorruptedFilesReadOrFailCleanly) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(dir, kSampleModel);
+  const fs::path tmp = testing::MakeTempDir("colmap_model_fuzz");
+  const Reconstruction sample = ReadModelText(dir);
+  Reconstruction small = sample;
+  small.points3d.resize(50);
+  for (ModelImage& image : small.images) {
+    image.points2d.resize(200);
+    for (Point2D& p : image.points2d) p.point3d_id = kInvalidPoint3DId;
+  }
+  for (ModelPoint3D& p : small.points3d) p.track.clear();
+  WriteModelText(small, tmp / "txt");
+  WriteModelBinary(small, tmp / "bin");
+  std::mt19937 rng(42);
+  int failures = 0, reads = 0;
+  for (const auto& [sub, names] :
+       {std::make_pair(std::string("txt"), kTextFiles), std::make_pair(std::string("bin"), kBinaryFiles)}) {
+    for (const std::string& name : names) {
+      const fs::path file = tmp / sub / name;
+      const std::string original = ReadFile(file);
+      for (int round = 0; round < 150; ++round) {
+        std::string bytes = original;
+        const int edits = 1 + static_cast<int>(rng() % 4);
+        for (int e = 0; e < edits && !bytes.empty(); ++e) {
+          const size_t at = rng() % bytes.size();
+          switch (rng() % 3) {
+            case 0: bytes[at] = static_cast<char>(rng()); break;
+            case 1: bytes.erase(at, 1 + rng() % 8); break;
+            default: bytes.insert(at, 1, sub == "txt" ? " -1x\n"[rng() % 5] : '\xff'); break;
+          }
+        }
+        std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes;
+        try {
+          const Reconstruction r = sub == "txt" ? ReadModelText(tmp / sub) : ReadModelBinary(tmp / sub);
+          r.Validate();  // must not crash either
+          ++reads;
+        } catch (const InputError& e) {
+          EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+          ++failures;
+        }
+      }
+      std::ofstream(file, std::ios::binary | std::ios::trunc) << original;
+    }
+  }
+  EXPECT_GT(failures, 100);
+  fs::remove_all(tmp);
 }
 
 }  // namespace
