@@ -6,10 +6,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 #include <thread>
@@ -423,6 +425,27 @@ TEST_F(Cli, ShardsThenFinalRunComplete) {
   EXPECT_TRUE(fs::exists(dir_ / "ws" / "nodes" / "stats" / "stats.csv"));
   EXPECT_EQ(Run("run demo.yaml --workspace ws --shard 2/2").rc, 2);
   EXPECT_EQ(Run("run demo.yaml --workspace ws --shard 0/2 --force").rc, 2);
+}
+
+TEST_F(Cli, ParallelShardsComputeSharedNodesOnce) {
+  Write("demo.yaml", kDemo);
+  const std::string bin = EnvPrefix() + "'" + Bin() + "' run demo.yaml --workspace ws --set count=40";
+  const std::string cmd = "cd '" + dir_.string() + "' && (" + bin + " --shard 0/2 > s0.out 2> s0.err & " +
+                          bin + " --shard 1/2 > s1.out 2> s1.err & wait)";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  const std::string s0 = ReadAll(dir_ / "s0.out"), s1 = ReadAll(dir_ / "s1.out");
+  ASSERT_NE(Status(s0, "images"), "failed") << s0 << ReadAll(dir_ / "s0.err");
+  ASSERT_NE(Status(s1, "images"), "failed") << s1 << ReadAll(dir_ / "s1.err");
+  // The whole node is computed by one process; the other waits on its lock.
+  EXPECT_EQ((Status(s0, "images") == "ran") + (Status(s1, "images") == "ran"), 1) << s0 << s1;
+  EXPECT_EQ(Status(s1, "images") == "cached" || Status(s0, "images") == "cached", true);
+  for (const std::string& out : {s0, s1})
+    EXPECT_TRUE(Status(out, "stats") == "partial" || Status(out, "stats") == "ran") << out;
+  const Result r = Run("run demo.yaml --workspace ws --set count=40");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_TRUE(Status(r.out, "stats") == "cached" || Status(r.out, "stats") == "resumed") << r.out;
+  std::ifstream csv(dir_ / "ws" / "nodes" / "stats" / "stats.csv");
+  EXPECT_EQ(std::count(std::istreambuf_iterator<char>(csv), std::istreambuf_iterator<char>(), '\n'), 41);
 }
 
 }  // namespace

@@ -180,12 +180,30 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
 
   reporter_.NodeStarted(label, node.stage->id);
   const auto start = std::chrono::steady_clock::now();
+  const bool sharded = per_item && options_.shard_count > 1;
+  // Shards running side by side may both see every item done and both
+  // finalize; the first to publish wins and the other one's result (or its
+  // error from the folder moving away) is moot.
+  auto published_by_another_shard = [&] {
+    if (!sharded) return false;
+    FileLock publish(LockFile(dir, ".publish.lock"), FileLock::kExclusive);
+    return Workspace::IsComplete(dir);
+  };
   std::string status;
   try {
     runtime::StageInstance instance(*node.stage, node.params);
     const runtime::RunResult r = instance.Run(run);
     report->items = r.items_total;
     report->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::optional<FileLock> publish;
+    if (sharded) {
+      publish.emplace(LockFile(dir, ".publish.lock"), FileLock::kExclusive);
+      if (Workspace::IsComplete(dir)) {
+        reporter_.NodeFinished(label, "ran (published by another shard)", r.items_total,
+                               report->seconds);
+        return {"ran", dir};
+      }
+    }
     if (!r.complete) {
       result->waiting_for_shards = true;
       reporter_.NodeFinished(label, "shard " + std::to_string(options_.shard_index) + "/" +
@@ -199,6 +217,11 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     return {status, dir};
   } catch (const std::exception& e) {
     report->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (published_by_another_shard()) {
+      reporter_.NodeFinished(label, "ran (published by another shard)", report->items,
+                             report->seconds);
+      return {"ran", dir};
+    }
     const bool interrupted = IsCancelled(options_.cancel);
     std::error_code ec;
     if (!per_item) fs::remove_all(partial, ec);  // nothing to resume in a whole-stage run
