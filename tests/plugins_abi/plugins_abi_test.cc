@@ -116,6 +116,24 @@ TEST(Registry, DuplicateStagesNameBothFilesAndKeepTheFirst) {
   fs::remove_all(dir);
 }
 
+TEST(Registry, LoadsPluginsWithLargerFutureStructs) {
+  Registry registry;
+  ASSERT_TRUE(registry.LoadFile(BrokenLib("future_structs")))
+      << (registry.problems().empty() ? "" : registry.problems()[0].message);
+  EXPECT_EQ(registry.StageIds(), (std::vector<std::string>{"broken/future_one", "broken/future_two"}));
+  for (const auto* stage : registry.Stages()) {
+    ASSERT_EQ(stage->params.size(), 2u);
+    EXPECT_EQ(stage->params[0].name, "alpha");
+    EXPECT_EQ(stage->params[1].name, "beta");
+    EXPECT_EQ(stage->params[1].default_value, "2");
+    EXPECT_EQ(stage->outputs.size(), 1u);
+  }
+  const auto* two = registry.Find("broken/future_two");
+  const auto resolved = locforge::runtime::CheckStageParams(*two, {{"beta", "5"}});
+  EXPECT_EQ(resolved.at("alpha"), "1");
+  EXPECT_EQ(resolved.at("beta"), "5");
+}
+
 TEST(Registry, MetadataIsReadIntoDecls) {
   Registry registry;
   ASSERT_TRUE(registry.LoadFile(kExamples));
