@@ -333,6 +333,48 @@ const Observations& Kapture::observations() const {
   return *cache_->observations;
 }
 
+// ---------------------------------------------------------------- writing
+
+fs::path FeatureFilePath(const fs::path& root, FeatureKind kind, const std::string& type,
+                         const std::string& image) {
+  if (type.empty() || type.find('/') != std::string::npos || type == "." || type == "..")
+    throw InputError(std::string(FeatureKindFolder(kind)) + " type '" + type +
+                     "' is not a folder name");
+  const fs::path dir = root / layout::FeatureRoot(kind) / type;
+  return SafeJoin(dir, image + FeatureKindExtension(kind),
+                  layout::FeatureRoot(kind) + "/" + type);
+}
+
+void WriteFeatureSetInfo(const fs::path& root, const std::string& type, const FeatureInfo& info) {
+  FeatureFilePath(root, info.kind, type, "x");  // validates the type name
+  WriteFeatureInfo(root / layout::FeatureRoot(info.kind) / type / InfoFileName(info.kind), info);
+}
+
+void WriteImageFeatures(const fs::path& root, const std::string& type, const FeatureInfo& info,
+                        const std::string& image, const FeatureArray& array) {
+  if (array.dtype != info.dtype || array.dsize != info.dsize)
+    throw Error(std::string("features for ") + image + " are " + DTypeName(array.dtype) + " x " +
+                std::to_string(array.dsize) + ", the type '" + type + "' holds " +
+                DTypeName(info.dtype) + " x " + std::to_string(info.dsize));
+  WriteFeatureFile(FeatureFilePath(root, info.kind, type, image), array);
+}
+
+void WriteMatches(const fs::path& root, const std::string& keypoints_type,
+                  const std::string& image1, const std::string& image2,
+                  const std::vector<Match>& matches) {
+  if (keypoints_type.empty() || keypoints_type.find('/') != std::string::npos)
+    throw InputError("matches: keypoints type '" + keypoints_type + "' is not a folder name");
+  const bool swap = image2 < image1;
+  std::vector<Match> ordered = matches;
+  if (swap)
+    for (Match& m : ordered) std::swap(m.index1, m.index2);
+  const fs::path dir = root / layout::kMatches / keypoints_type;
+  const fs::path path = SafeJoin(dir, swap ? layout::MatchesFile(image2, image1)
+                                           : layout::MatchesFile(image1, image2),
+                                 std::string(layout::kMatches) + "/" + keypoints_type);
+  WriteFeatureFile(path, MatchesToArray(ordered));
+}
+
 // ------------------------------------------------------------------- copy
 
 bool CopyOptions::Check(std::string* why) const {

@@ -346,3 +346,72 @@ TEST(KaptureLegacy, Reads10LayoutAndCopyKeepsIt) {
 
 }  // namespace
 }  // namespace locforge::kapture
+
+namespace locforge::kapture {
+namespace {
+
+TEST(KaptureWriting, BuildsA11DatasetThatReadsBack) {
+  const fs::path root = locforge::testing::MakeTempDir("kapture_write") / "k";
+  Sensors sensors;
+  Camera cam;
+  cam.model = CameraModelId::kSimpleRadial;
+  cam.width = 640;
+  cam.height = 480;
+  cam.params = {500.0, 320.0, 240.0, -0.01};
+  sensors.Add(MakeCameraSensor("cam", "sim", cam));
+  WriteSensors(root / layout::kSensors, sensors);
+  Rigs rigs;
+  rigs.Add("rig", RigSensor{"cam", Pose(Eigen::Quaterniond(0, 0, 1, 0), Eigen::Vector3d(0, 0, 0.1)),
+                            PoseParts::kComplete, std::nullopt});
+  WriteRigs(root / layout::kRigs, rigs);
+  Trajectories traj;
+  traj.Set(10, "rig", Pose(Eigen::Quaterniond(1, 0, 0, 0), Eigen::Vector3d(1, 2, 3)));
+  WriteTrajectories(root / layout::kTrajectories, traj);
+  WriteRecords<DataRecord>(root / layout::RecordsFile("camera"), RecordKind::kCamera,
+                           {{10, "cam", "seq/img 0.png"}, {10, "cam", "seq/img1.png"}});
+  FeatureInfo info;
+  info.kind = FeatureKind::kKeypoints;
+  info.name = "sim";
+  info.dtype_name = "float32";
+  info.dtype = DType::kFloat32;
+  info.dsize = 2;
+  WriteFeatureSetInfo(root, "simkp", info);
+  WriteImageFeatures(root, "simkp", info, "seq/img1.png",
+                     FeatureArray::From(DType::kFloat32, 2, std::vector<float>{10, 20, 30, 40}));
+  WriteImageFeatures(root, "simkp", info, "seq/img 0.png",
+                     FeatureArray::From(DType::kFloat32, 2, std::vector<float>{1, 2}));
+  EXPECT_THROW(WriteImageFeatures(root, "simkp", info, "x.png",
+                                  FeatureArray::From(DType::kFloat64, 2, std::vector<double>{1, 2})),
+               Error);
+  EXPECT_THROW(WriteImageFeatures(root, "simkp", info, "../../x.png",
+                                  FeatureArray::From(DType::kFloat32, 2, std::vector<float>{1, 2})),
+               InputError);
+  // Written in the other order: stored under the smaller name, columns swapped.
+  WriteMatches(root, "simkp", "seq/img1.png", "seq/img 0.png", {{1, 0, 0.9}});
+  EXPECT_TRUE(fs::exists(root / "reconstruction/matches/simkp/seq/img 0.png.overlapping/seq/img1.png.matches"));
+  WritePoints3d(root / layout::kPoints3d, {{1, 2, 3, 255, 128, 0}});
+  WriteObservations(root / layout::kObservations, {{0, "simkp", {{"seq/img1.png", 1}, {"seq/img 0.png", 0}}}});
+
+  Kapture k(root);
+  EXPECT_EQ(k.sensors().Find("cam")->params,
+            (std::vector<std::string>{"SIMPLE_RADIAL", "640", "480", "500.0", "320.0", "240.0", "-0.01"}));
+  const auto pose = k.DevicePose(10, "cam");
+  ASSERT_TRUE(pose);
+  EXPECT_NEAR((pose->t - Eigen::Vector3d(-1, 2, -2.9)).norm(), 0, 1e-12);  // R_y(180) * (1,2,3) + (0,0,0.1)
+  EXPECT_EQ(k.ReadDataRecords("camera")[0].path, "seq/img 0.png");
+  EXPECT_EQ(k.ReadKeypoints("simkp", "seq/img1.png").At(1, 1), 40.0);
+  const auto m = k.ReadMatches("simkp", "seq/img1.png", "seq/img 0.png");
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m[0].index1, 1.0);
+  EXPECT_EQ(m[0].index2, 0.0);
+  EXPECT_EQ(k.MatchPairs("simkp")[0].first, "seq/img 0.png");
+  EXPECT_EQ(k.points3d()[0].g, 128.0);
+  EXPECT_EQ(k.observations()[0].features[1].first, "seq/img 0.png");
+  const KaptureSummary s = InspectKapture(root);
+  EXPECT_EQ(s.features.at(0).files, 2);
+  EXPECT_EQ(s.match_pairs.at("simkp"), 1);
+  fs::remove_all(root.parent_path());
+}
+
+}  // namespace
+}  // namespace locforge::kapture

@@ -153,6 +153,25 @@ class Kapture {
   std::unique_ptr<Cache> cache_;
 };
 
+// --------------------------------------------------------------- writing
+// Per-file writers are in io.h and features.h; these place files in the 1.1
+// layout under a kapture root.
+
+// <root>/reconstruction/<kind>/<type>/<image><ext>, refusing escapes.
+fs::path FeatureFilePath(const fs::path& root, FeatureKind kind, const std::string& type,
+                         const std::string& image);
+// Writes <kind>.txt of a type: <root>/reconstruction/<kind>/<type>/<kind>.txt.
+void WriteFeatureSetInfo(const fs::path& root, const std::string& type, const FeatureInfo& info);
+// Writes one image's feature file (atomically), checking the array's dtype
+// and dsize against `info`.
+void WriteImageFeatures(const fs::path& root, const std::string& type, const FeatureInfo& info,
+                        const std::string& image, const FeatureArray& array);
+// Writes the matches of a pair in the toolbox's order: stored under the
+// smaller image name, index columns swapped when image2 < image1.
+void WriteMatches(const fs::path& root, const std::string& keypoints_type,
+                  const std::string& image1, const std::string& image2,
+                  const std::vector<Match>& matches);
+
 // ------------------------------------------------------------------- copy
 
 struct CopyOptions {
