@@ -35,6 +35,9 @@ Rigs ReadRigs(const fs::path& path, const std::string& display_name = "");
 Rigs ParseRigs(std::istream& in, const std::string& display_name);
 void WriteRigs(const fs::path& path, const Rigs& rigs);
 
+// kapture 1.1 trajectories: "timestamp, device_id, qw, qx, qy, qz, tx, ty,
+// tz" (no covariance column); one pose per (timestamp, device), a second one
+// is refused.
 Trajectories ReadTrajectories(const fs::path& path, const std::string& display_name = "");
 Trajectories ParseTrajectories(std::istream& in, const std::string& display_name);
 // Sorted by (timestamp, device); timestamps right-aligned to 8 characters
@@ -57,7 +60,9 @@ std::vector<std::string> FormatPoseFields(const Pose& pose, PoseParts parts,
 
 // Streams records_<type>.txt one record at a time (memory O(one record)).
 // Record is one of DataRecord, GnssRecord, WifiRecord, BluetoothRecord,
-// Vector3Record, GenericRecord.
+// Vector3Record, GenericRecord. Wifi is read in the 1.1 column order only
+// (the 1.0 order "BSSID, RSSI, frequency, ..." is refused by its count).
+// Records are kept in file order; nothing is sorted or deduplicated.
 //
 // DataRecord paths are checked: an absolute path or one that climbs out of
 // records_data ("..") is refused with InputError naming file and line; when
