@@ -77,7 +77,8 @@ written in the graph, and against the current directory when they come from
 --set (directly or through a variable set with --set).
 )";
 
-const char kValidateHelp[] = R"(Usage: locforge validate GRAPH.yaml [--set KEY=VALUE]... [--plugin-path DIR]...
+const char kValidateHelp[] =
+    R"(Usage: locforge validate GRAPH.yaml [--set KEY=VALUE]... [--plugin-path DIR]...
 
 Checks the graph without running anything: YAML syntax and duplicate keys,
 unknown variables, stages (did you mean), parameters (names, types, ranges,
@@ -210,8 +211,8 @@ int Main(const Args& args) {
   if (command == "run") return RunCommand(rest);
   if (command == "kapture") return KaptureCommand(rest);
   if (command == "colmap") return ColmapCommand(rest);
-  const std::vector<std::string> commands = {"plugins", "validate", "run", "kapture", "colmap",
-                                             "help"};
+  const std::vector<std::string> commands = {"plugins", "validate", "run",
+                                             "kapture", "colmap",   "help"};
   const std::string hint = DidYouMean(command, commands);
   std::cerr << "locforge: unknown command '" << command << "'"
             << (hint.empty() ? "" : " (did you mean '" + hint + "'?)")

@@ -166,15 +166,17 @@ TEST_F(Cli, PluginsListFailsOnDuplicates) {
   EXPECT_NE(r.err.find("duplicate"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("liblocforge_examples_copy.so"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find((fs::path(PluginDir()) / "liblocforge_examples.so").string()),
-            std::string::npos) << r.err;
+            std::string::npos)
+      << r.err;
 }
 
 TEST_F(Cli, PluginsDescribe) {
   Result r = Run("plugins describe example/image_stats");
   EXPECT_EQ(r.rc, 0) << r.err;
-  for (const char* text : {"example/image_stats", "per-item", "bins  (int)  default: 16",
-                           "range: [1, 256]", "Histogram bins", "images: kapture.dataset  (required)",
-                           "stats: report", "component interface: none", "plugin: examples"})
+  for (const char* text :
+       {"example/image_stats", "per-item", "bins  (int)  default: 16", "range: [1, 256]",
+        "Histogram bins", "images: kapture.dataset  (required)", "stats: report",
+        "component interface: none", "plugin: examples"})
     EXPECT_NE(r.out.find(text), std::string::npos) << text << "\n" << r.out;
   r = Run("plugins describe source/image_list");
   EXPECT_NE(r.out.find("root  (path)  required"), std::string::npos) << r.out;
@@ -195,32 +197,50 @@ TEST_F(Cli, ValidateRefusesEachErrorClass) {
   Write("broken/libbroken.so", "not a library");
   const BadGraph cases[] = {
       {"unknown_stage", "nodes:\n  a: {stage: source/synthetic_image}\n",
-       ":3:14: error: node 'a': unknown stage 'source/synthetic_image' (did you mean 'source/synthetic_images'?)"},
+       ":3:14: error: node 'a': unknown stage 'source/synthetic_image' (did you mean "
+       "'source/synthetic_images'?)"},
       {"unknown_param", "nodes:\n  a: {stage: source/synthetic_images, params: {cuont: 3}}\n",
-       ":3:48: error: node 'a': stage 'source/synthetic_images' has no parameter 'cuont' (did you mean 'count'?)"},
+       ":3:48: error: node 'a': stage 'source/synthetic_images' has no parameter 'cuont' (did you "
+       "mean 'count'?)"},
       {"mistyped_param", "nodes:\n  a: {stage: source/synthetic_images, params: {count: lots}}\n",
        ":3:55: error: node 'a': parameter 'count' (int): expected an integer, got 'lots'"},
       {"out_of_range", "nodes:\n  a: {stage: source/synthetic_images, params: {width: 2}}\n",
        ":3:55: error: node 'a': parameter 'width' (int): value 2 is out of range [8, 16384]"},
       {"required_param", "nodes:\n  a: {stage: source/image_list}\n",
        ":3:3: error: node 'a': required parameter 'root' (path"},
-      {"missing_path", "nodes:\n  a: {stage: source/image_list, params: {root: ./no_such_folder}}\n",
+      {"missing_path",
+       "nodes:\n  a: {stage: source/image_list, params: {root: ./no_such_folder}}\n",
        ":3:48: error: node 'a': parameter 'root' (path): '"},
-      {"unknown_node", "nodes:\n  a: {stage: source/synthetic_images}\n  s: {stage: example/image_stats, inputs: {images: b.images}}\n",
+      {"unknown_node",
+       "nodes:\n  a: {stage: source/synthetic_images}\n  s: {stage: example/image_stats, inputs: "
+       "{images: b.images}}\n",
        ":4:52: error: node 's': input 'images' reads unknown node 'b' (did you mean 'a'?)"},
-      {"unknown_port", "nodes:\n  a: {stage: source/synthetic_images}\n  s: {stage: example/image_stats, inputs: {images: a.imgs}}\n",
+      {"unknown_port",
+       "nodes:\n  a: {stage: source/synthetic_images}\n  s: {stage: example/image_stats, inputs: "
+       "{images: a.imgs}}\n",
        ":4:52: error: node 's': node 'a' (source/synthetic_images) has no output 'imgs'"},
-      {"unknown_input", "nodes:\n  a: {stage: source/synthetic_images}\n  s: {stage: example/image_stats, inputs: {imgs: a.images}}\n",
-       ":4:44: error: node 's': stage 'example/image_stats' has no input 'imgs' (did you mean 'images'?)"},
-      {"type_mismatch", "nodes:\n  a: {stage: source/synthetic_images}\n  s: {stage: example/image_stats, inputs: {images: a.images}}\n  t: {stage: example/image_stats, inputs: {images: s.stats}}\n",
-       ":5:52: error: node 't': input 'images' expects artifact type 'kapture.dataset' but s.stats gives 'report'"},
+      {"unknown_input",
+       "nodes:\n  a: {stage: source/synthetic_images}\n  s: {stage: example/image_stats, inputs: "
+       "{imgs: a.images}}\n",
+       ":4:44: error: node 's': stage 'example/image_stats' has no input 'imgs' (did you mean "
+       "'images'?)"},
+      {"type_mismatch",
+       "nodes:\n  a: {stage: source/synthetic_images}\n  s: {stage: example/image_stats, inputs: "
+       "{images: a.images}}\n  t: {stage: example/image_stats, inputs: {images: s.stats}}\n",
+       ":5:52: error: node 't': input 'images' expects artifact type 'kapture.dataset' but s.stats "
+       "gives 'report'"},
       {"unwired_input", "nodes:\n  s: {stage: example/image_stats}\n",
        ":3:3: error: node 's': required input 'images' (kapture.dataset) is not wired"},
-      {"cycle", "nodes:\n  s: {stage: example/image_stats, inputs: {images: t.stats}}\n  t: {stage: example/image_stats, inputs: {images: s.stats}}\n",
+      {"cycle",
+       "nodes:\n  s: {stage: example/image_stats, inputs: {images: t.stats}}\n  t: {stage: "
+       "example/image_stats, inputs: {images: s.stats}}\n",
        ":3:3: error: cycle in the graph: s -> t -> s"},
-      {"unknown_var", "vars: {count: 3}\nnodes:\n  a: {stage: source/synthetic_images, params: {count: \"${cont}\"}}\n",
+      {"unknown_var",
+       "vars: {count: 3}\nnodes:\n  a: {stage: source/synthetic_images, params: {count: "
+       "\"${cont}\"}}\n",
        ":4:55: error: unknown variable 'cont' (did you mean 'count'?)"},
-      {"duplicate_key", "nodes:\n  a: {stage: source/synthetic_images}\n  a: {stage: source/synthetic_images}\n",
+      {"duplicate_key",
+       "nodes:\n  a: {stage: source/synthetic_images}\n  a: {stage: source/synthetic_images}\n",
        ":4:3: error: duplicate key 'a'"},
       {"plugin_refused", "plugin_paths: [broken]\nnodes:\n  a: {stage: source/synthetic_images}\n",
        ": error: plugin "},
@@ -230,15 +250,19 @@ TEST_F(Cli, ValidateRefusesEachErrorClass) {
     const Result r = Run("validate " + g.filename().string());
     EXPECT_EQ(r.rc, 2) << c.name << ": " << r.out << r.err;
     EXPECT_NE(r.err.find(g.filename().string() + c.expected), std::string::npos)
-        << c.name << ": expected '" << c.expected << "' in:\n" << r.err;
+        << c.name << ": expected '" << c.expected << "' in:\n"
+        << r.err;
     const Result run = Run("run " + g.filename().string() + " --workspace ws");
     EXPECT_EQ(run.rc, 2) << c.name;
     EXPECT_FALSE(fs::exists(dir_ / "ws" / "cache")) << c.name << ": nothing may run";
   }
   // Component-only stages are refused as nodes (no example stage is one; see graph_test).
   const Result set = Run("validate unknown_param.yaml --set a.count=0");
-  EXPECT_NE(set.err.find("--set a.count=0: error: node 'a': parameter 'count' (int): value 0 is out of range"),
-            std::string::npos) << set.err;
+  EXPECT_NE(
+      set.err.find(
+          "--set a.count=0: error: node 'a': parameter 'count' (int): value 0 is out of range"),
+      std::string::npos)
+      << set.err;
 }
 
 TEST_F(Cli, ValidateAcceptsTheExamples) {
@@ -353,7 +377,8 @@ nodes:
   EXPECT_EQ(r.rc, 1);
   EXPECT_EQ(Status(r.out, "imgs"), "failed") << r.out;
   EXPECT_EQ(Status(r.out, "stats"), "skipped") << r.out;
-  EXPECT_NE(r.err.find("error: node 'imgs' (source/image_list) failed: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("error: node 'imgs' (source/image_list) failed: "), std::string::npos)
+      << r.err;
   EXPECT_NE(r.err.find("x.png"), std::string::npos) << r.err;
 }
 
@@ -361,8 +386,9 @@ TEST_F(Cli, InterruptedPerItemRunResumes) {
   const std::string images =
       "  images: {stage: source/synthetic_images, params: {count: 200, width: 480, height: 360}}\n";
   Write("images.yaml", "locforge: 1\nnodes:\n" + images);
-  Write("slow.yaml", "locforge: 1\nnodes:\n" + images +
-                         "  stats: {stage: example/image_stats, inputs: {images: images.images}}\n");
+  Write("slow.yaml",
+        "locforge: 1\nnodes:\n" + images +
+            "  stats: {stage: example/image_stats, inputs: {images: images.images}}\n");
   // Same node, same key: the images are cached for slow.yaml.
   ASSERT_EQ(Run("run images.yaml --workspace ws").rc, 0);
   const pid_t pid = fork();
@@ -401,7 +427,8 @@ TEST_F(Cli, InterruptedPerItemRunResumes) {
   EXPECT_EQ(Status(r.out, "images"), "cached") << r.out;
   EXPECT_EQ(Status(r.out, "stats"), "resumed") << r.out;
   EXPECT_NE(r.out.find("resumed    200"), std::string::npos) << r.out;
-  EXPECT_EQ(std::count(std::istreambuf_iterator<char>(std::ifstream(dir_ / "ws" / "nodes" / "stats" / "stats.csv").rdbuf()),
+  EXPECT_EQ(std::count(std::istreambuf_iterator<char>(
+                           std::ifstream(dir_ / "ws" / "nodes" / "stats" / "stats.csv").rdbuf()),
                        std::istreambuf_iterator<char>(), '\n'),
             201)
       << "header + one line per image";
@@ -429,9 +456,11 @@ TEST_F(Cli, ShardsThenFinalRunComplete) {
 
 TEST_F(Cli, ParallelShardsComputeSharedNodesOnce) {
   Write("demo.yaml", kDemo);
-  const std::string bin = EnvPrefix() + "'" + Bin() + "' run demo.yaml --workspace ws --set count=40";
-  const std::string cmd = "cd '" + dir_.string() + "' && (" + bin + " --shard 0/2 > s0.out 2> s0.err & " +
-                          bin + " --shard 1/2 > s1.out 2> s1.err & wait)";
+  const std::string bin =
+      EnvPrefix() + "'" + Bin() + "' run demo.yaml --workspace ws --set count=40";
+  const std::string cmd = "cd '" + dir_.string() + "' && (" + bin +
+                          " --shard 0/2 > s0.out 2> s0.err & " + bin +
+                          " --shard 1/2 > s1.out 2> s1.err & wait)";
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   const std::string s0 = ReadAll(dir_ / "s0.out"), s1 = ReadAll(dir_ / "s1.out");
   ASSERT_NE(Status(s0, "images"), "failed") << s0 << ReadAll(dir_ / "s0.err");
@@ -445,7 +474,8 @@ TEST_F(Cli, ParallelShardsComputeSharedNodesOnce) {
   ASSERT_EQ(r.rc, 0) << r.err;
   EXPECT_TRUE(Status(r.out, "stats") == "cached" || Status(r.out, "stats") == "resumed") << r.out;
   std::ifstream csv(dir_ / "ws" / "nodes" / "stats" / "stats.csv");
-  EXPECT_EQ(std::count(std::istreambuf_iterator<char>(csv), std::istreambuf_iterator<char>(), '\n'), 41);
+  EXPECT_EQ(std::count(std::istreambuf_iterator<char>(csv), std::istreambuf_iterator<char>(), '\n'),
+            41);
 }
 
 }  // namespace

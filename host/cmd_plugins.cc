@@ -26,8 +26,10 @@ std::string PortFlags(uint32_t flags) {
 std::string DescribeParam(const ParamDecl& d) {
   std::ostringstream s;
   s << "    " << d.name << "  (" << ParamTypeName(d.type) << ")";
-  if (d.required()) s << "  required";
-  else s << "  default: " << (d.default_value.empty() ? "\"\"" : Shown(d.default_value));
+  if (d.required())
+    s << "  required";
+  else
+    s << "  default: " << (d.default_value.empty() ? "\"\"" : Shown(d.default_value));
   if (d.has_min || d.has_max) {
     s << "  range: [" << (d.has_min ? FormatDouble(d.min_value) : "-inf") << ", "
       << (d.has_max ? FormatDouble(d.max_value) : "+inf") << "]";
@@ -47,8 +49,8 @@ void DescribePorts(const char* title, const std::vector<runtime::PortDecl>& port
   if (ports.empty()) out << "    (none)\n";
   for (const auto& p : ports)
     out << "    " << p.name << ": " << p.artifact_type
-        << (inputs ? "  (" + PortFlags(p.flags) + ")" : "")
-        << (p.doc.empty() ? "" : "  " + p.doc) << "\n";
+        << (inputs ? "  (" + PortFlags(p.flags) + ")" : "") << (p.doc.empty() ? "" : "  " + p.doc)
+        << "\n";
 }
 
 int Describe(const runtime::Registry& registry, const std::string& id) {
@@ -66,7 +68,7 @@ int Describe(const runtime::Registry& registry, const std::string& id) {
   out << stage->id << "\n    " << (info.doc ? info.doc : "") << "\n";
   out << "plugin: " << (plugin.name ? plugin.name : "?") << " "
       << (plugin.version ? plugin.version : "?") << " (" << stage->plugin->file.string() << ")\n";
-  std::string mode = !stage->runnable()   ? "component only (not a graph node)"
+  std::string mode = !stage->runnable()  ? "component only (not a graph node)"
                      : stage->per_item() ? "per-item (threaded, sharded, resumable)"
                                          : "whole (runs once per node)";
   if (info.flags & LF_STAGE_SERIAL_ITEMS) mode += ", items run serially";
@@ -77,8 +79,8 @@ int Describe(const runtime::Registry& registry, const std::string& id) {
   for (const auto& d : stage->params) out << DescribeParam(d);
   DescribePorts("inputs", stage->inputs, true, out);
   DescribePorts("outputs", stage->outputs, false, out);
-  out << "component interface: "
-      << (info.component_interface ? info.component_interface : "none") << "\n";
+  out << "component interface: " << (info.component_interface ? info.component_interface : "none")
+      << "\n";
   return 0;
 }
 
@@ -108,9 +110,12 @@ int PluginsCommand(const Args& args) {
   try {
     for (size_t i = 0; i < args.size(); ++i) {
       std::string value;
-      if (TakeOption(args, &i, "--plugin-path", &value)) extra.emplace_back(value);
-      else if (args[i].rfind("--", 0) == 0) return UsageError("plugins", "unknown option '" + args[i] + "'");
-      else positional.push_back(args[i]);
+      if (TakeOption(args, &i, "--plugin-path", &value))
+        extra.emplace_back(value);
+      else if (args[i].rfind("--", 0) == 0)
+        return UsageError("plugins", "unknown option '" + args[i] + "'");
+      else
+        positional.push_back(args[i]);
     }
   } catch (const std::invalid_argument& e) {
     return UsageError("plugins", e.what());

@@ -47,7 +47,8 @@ int ParseArgs(const std::string& command, const Args& args, bool run, GraphArgs*
       std::string v;
       if (TakeOption(args, &i, "--set", &v)) {
         Override o;
-        if (!ParseOverride(v, &o)) return UsageError(command, "--set expects KEY=VALUE, got '" + v + "'");
+        if (!ParseOverride(v, &o))
+          return UsageError(command, "--set expects KEY=VALUE, got '" + v + "'");
         out->sets.push_back(o);
       } else if (TakeOption(args, &i, "--plugin-path", &v)) {
         out->plugin_paths.push_back(fs::absolute(v));
@@ -67,7 +68,9 @@ int ParseArgs(const std::string& command, const Args& args, bool run, GraphArgs*
         out->force = true;
       } else if (args[i].rfind("-", 0) == 0) {
         std::vector<std::string> known = {"--set", "--plugin-path", "--help"};
-        if (run) known.insert(known.end(), {"--workspace", "--threads", "--force", "--shard", "--variant"});
+        if (run)
+          known.insert(known.end(),
+                       {"--workspace", "--threads", "--force", "--shard", "--variant"});
         const std::string hint = DidYouMean(args[i], known);
         return UsageError(command, "unknown option '" + args[i] + "'" +
                                        (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
@@ -108,8 +111,8 @@ bool PrepareGraph(const GraphArgs& args, runtime::Registry* registry,
       extra.push_back(folder);
   }
   for (const auto& problem : LoadPlugins(registry, extra))
-    errors.push_back({{args.graph}, "plugin " + problem.file.string() + " refused: " +
-                                        problem.message});
+    errors.push_back(
+        {{args.graph}, "plugin " + problem.file.string() + " refused: " + problem.message});
   for (const auto& d : registry->duplicates())
     errors.push_back({{args.graph}, "duplicate stage: " + d});
   std::vector<const GraphVariant*> selected;
@@ -183,7 +186,8 @@ int RunCommand(const Args& args) {
   try {
     workspace = std::make_unique<Workspace>(ga.workspace);
   } catch (const std::exception& e) {
-    std::cerr << "locforge run: cannot use workspace '" << ga.workspace << "': " << e.what() << "\n";
+    std::cerr << "locforge run: cannot use workspace '" << ga.workspace << "': " << e.what()
+              << "\n";
     return 2;
   }
   Reporter reporter(std::cerr, ::isatty(STDERR_FILENO) != 0);
@@ -196,8 +200,9 @@ int RunCommand(const Args& args) {
     reporter.FileOnly("warning: plugin " + p.file.string() + " refused and skipped: " + p.message);
 
   ExecOptions options;
-  options.threads = ga.threads > 0 ? ga.threads
-                                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  options.threads = ga.threads > 0
+                        ? ga.threads
+                        : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   options.force = ga.force;
   options.shard_index = ga.shard_index;
   options.shard_count = ga.shard_count;
@@ -230,8 +235,7 @@ int RunCommand(const Args& args) {
     return 1;
   }
   if (result.waiting_for_shards) {
-    reporter.Line("shard " + std::to_string(ga.shard_index) + "/" +
-                  std::to_string(ga.shard_count) +
+    reporter.Line("shard " + std::to_string(ga.shard_index) + "/" + std::to_string(ga.shard_count) +
                   " done; nodes downstream of sharded ones wait for the other shards. Run the "
                   "remaining shards, then the same command without --shard to finish.");
   }

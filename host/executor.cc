@@ -145,7 +145,7 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
       // Shards of one node run side by side; an unsharded run waits for them.
       node_lock.emplace(LockFile(dir, ".lock"), FileLock::kShared);
       shard_lock.emplace(LockFile(dir, ".shard-" + std::to_string(options_.shard_index) + "-of-" +
-                                          std::to_string(options_.shard_count) + ".lock"),
+                                           std::to_string(options_.shard_count) + ".lock"),
                          FileLock::kExclusive);
     } else {
       node_lock.emplace(LockFile(dir, ".lock"), FileLock::kExclusive);
@@ -194,7 +194,8 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     runtime::StageInstance instance(*node.stage, node.params);
     const runtime::RunResult r = instance.Run(run);
     report->items = r.items_total;
-    report->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    report->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::optional<FileLock> publish;
     if (sharded) {
       publish.emplace(LockFile(dir, ".publish.lock"), FileLock::kExclusive);
@@ -206,8 +207,9 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     }
     if (!r.complete) {
       result->waiting_for_shards = true;
-      reporter_.NodeFinished(label, "shard " + std::to_string(options_.shard_index) + "/" +
-                                        std::to_string(options_.shard_count) + " done",
+      reporter_.NodeFinished(label,
+                             "shard " + std::to_string(options_.shard_index) + "/" +
+                                 std::to_string(options_.shard_count) + " done",
                              r.items_total, report->seconds);
       return {"partial", {}};
     }
@@ -216,7 +218,8 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     reporter_.NodeFinished(label, status, r.items_total, report->seconds);
     return {status, dir};
   } catch (const std::exception& e) {
-    report->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    report->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (published_by_another_shard()) {
       reporter_.NodeFinished(label, "ran (published by another shard)", report->items,
                              report->seconds);
@@ -255,14 +258,14 @@ std::string Executor::Manifest(const ResolvedNode& node, const std::string& key,
   first = true;
   for (const auto& in : inputs) {
     j += std::string(first ? "\n" : ",\n") + "    {\"port\": " + JsonString(in.port) +
-         ", \"type\": " + JsonString(in.artifact_type) + ", \"path\": " +
-         JsonString(in.path.string()) + "}";
+         ", \"type\": " + JsonString(in.artifact_type) +
+         ", \"path\": " + JsonString(in.path.string()) + "}";
     first = false;
   }
   char secs[32];
   std::snprintf(secs, sizeof(secs), "%.3f", seconds);
-  j += "\n  ],\n  \"finished\": " + JsonString(UtcNow()) + ",\n  \"items\": " +
-       std::to_string(items) + ",\n  \"seconds\": " + secs + "\n}\n";
+  j += "\n  ],\n  \"finished\": " + JsonString(UtcNow()) +
+       ",\n  \"items\": " + std::to_string(items) + ",\n  \"seconds\": " + secs + "\n}\n";
   return j;
 }
 

@@ -35,8 +35,8 @@ struct NodeReport {
 struct ExecResult {
   std::vector<NodeReport> nodes;
   bool failed = false;
-  std::string failure;              // one line naming the node and the plugin's message
-  bool waiting_for_shards = false;  // this shard is done; other shards still pending
+  std::string failure;               // one line naming the node and the plugin's message
+  bool waiting_for_shards = false;   // this shard is done; other shards still pending
   std::vector<std::string> outputs;  // workspace links of the final outputs
 };
 
@@ -55,8 +55,7 @@ class Executor {
   NodeReport RunNode(const ResolvedGraph& graph, const ResolvedNode& node, const std::string& key,
                      ExecResult* result);
   Done Compute(const std::string& label, const ResolvedGraph& graph, const ResolvedNode& node,
-               const std::string& key,
-               const fs::path& dir, NodeReport* report, ExecResult* result);
+               const std::string& key, const fs::path& dir, NodeReport* report, ExecResult* result);
   std::vector<runtime::InputArtifact> Inputs(const ResolvedGraph& graph, const ResolvedNode& node);
   std::string Manifest(const ResolvedNode& node, const std::string& key,
                        const std::vector<runtime::InputArtifact>& inputs, uint64_t items,

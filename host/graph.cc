@@ -53,7 +53,8 @@ std::string Mask(const std::string& text) {
   std::string out = text;
   for (size_t pos = out.find("${"); pos != std::string::npos; pos = out.find("${", pos + 1)) {
     size_t end = pos + 2;
-    while (end < out.size() && (std::isalnum(static_cast<unsigned char>(out[end])) || out[end] == '_'))
+    while (end < out.size() &&
+           (std::isalnum(static_cast<unsigned char>(out[end])) || out[end] == '_'))
       ++end;
     if (end == pos + 2 || end >= out.size() || out[end] != '}') continue;
     out[pos + 1] = '<';
@@ -66,7 +67,8 @@ std::string Unmask(const std::string& scalar) {
   std::string out = scalar;
   for (size_t pos = out.find("$<"); pos != std::string::npos; pos = out.find("$<", pos + 1)) {
     size_t end = pos + 2;
-    while (end < out.size() && (std::isalnum(static_cast<unsigned char>(out[end])) || out[end] == '_'))
+    while (end < out.size() &&
+           (std::isalnum(static_cast<unsigned char>(out[end])) || out[end] == '_'))
       ++end;
     if (end == pos + 2 || end >= out.size() || out[end] != '>') continue;
     out[pos + 1] = '{';
@@ -93,9 +95,7 @@ class GraphParser {
 
  private:
   SourceLocation At(const YAML::Node& n) const { return At(n.Mark()); }
-  SourceLocation At(const YAML::Mark& m) const {
-    return {display_, m.line + 1, m.column + 1};
-  }
+  SourceLocation At(const YAML::Mark& m) const { return {display_, m.line + 1, m.column + 1}; }
   void Fail(const SourceLocation& where, const std::string& message) {
     errors_->push_back({where, message});
   }
@@ -114,8 +114,7 @@ class GraphParser {
   Value Substitute(const Value& raw, const SourceLocation& where, bool* from_cli);
   bool SubstituteScalar(const std::string& s, const SourceLocation& where, Value* out,
                         bool* from_cli);
-  bool LookupVar(const std::string& name, const SourceLocation& where, Value* out,
-                 bool* from_cli);
+  bool LookupVar(const std::string& name, const SourceLocation& where, Value* out, bool* from_cli);
   std::vector<std::string> KnownNames() const;
 
   fs::path file_;
@@ -254,9 +253,8 @@ std::vector<std::string> GraphParser::KnownNames() const {
 std::string SafeVariantPart(const std::string& s) {
   std::string out;
   for (char c : s)
-    out += (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')
-               ? c
-               : '_';
+    out +=
+        (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.') ? c : '_';
   return out;
 }
 
@@ -294,7 +292,9 @@ bool GraphParser::LookupVar(const std::string& name, const SourceLocation& where
     return false;
   }
   if (!resolving_.insert(name).second) {
-    Fail(v->second.where, "variable '" + name + "' refers to itself");
+    Fail(v->second.where,
+         "variable '" + name +
+             "' is defined in terms of itself (expected no cycle of ${...} references)");
     return false;
   }
   bool cli = v->second.from_command_line;
@@ -311,8 +311,7 @@ bool GraphParser::LookupVar(const std::string& name, const SourceLocation& where
 bool GraphParser::SubstituteScalar(const std::string& s, const SourceLocation& where, Value* out,
                                    bool* from_cli) {
   // A scalar that is exactly ${x} takes x's value as is (a list stays a list).
-  if (s.size() > 3 && s.compare(0, 2, "${") == 0 && s.back() == '}' &&
-      s.find('}') == s.size() - 1)
+  if (s.size() > 3 && s.compare(0, 2, "${") == 0 && s.back() == '}' && s.find('}') == s.size() - 1)
     return LookupVar(s.substr(2, s.size() - 3), where, out, from_cli);
   std::string result;
   size_t pos = 0;
@@ -364,7 +363,8 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
       continue;
     }
     if (!body.IsMap()) {
-      Fail(At(body), "node '" + node.name + "': expected a mapping with 'stage', 'params', 'inputs'");
+      Fail(At(body),
+           "node '" + node.name + "': expected a mapping with 'stage', 'params', 'inputs'");
       continue;
     }
     for (auto k = body.begin(); k != body.end(); ++k) {
@@ -379,7 +379,8 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
     } else {
       node.stage_where = At(stage);
       bool cli = false;
-      node.stage = Substitute(Value{{Unmask(stage.Scalar())}, false}, node.stage_where, &cli).scalar();
+      node.stage =
+          Substitute(Value{{Unmask(stage.Scalar())}, false}, node.stage_where, &cli).scalar();
     }
     if (const YAML::Node params = body["params"]) {
       if (!params.IsMap() && !params.IsNull()) {
@@ -471,7 +472,7 @@ bool GraphParser::Parse(const std::string& text, const std::vector<Override>& se
   }
   CheckDuplicateKeys(root);
   static const std::vector<std::string> kTopKeys = {"locforge", "description", "plugin_paths",
-                                                    "vars", "matrix", "nodes"};
+                                                    "vars",     "matrix",      "nodes"};
   for (auto it = root.begin(); it != root.end(); ++it) {
     const std::string key = it->first.Scalar();
     if (std::find(kTopKeys.begin(), kTopKeys.end(), key) == kTopKeys.end())

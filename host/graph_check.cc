@@ -55,7 +55,8 @@ std::string CanonicalItem(LfParamType type, const std::string& s) {
       ParseDouble(s, &d);
       return FormatDouble(d);
     }
-    default: return s;
+    default:
+      return s;
   }
 }
 
@@ -67,8 +68,8 @@ bool IsListType(LfParamType t) {
 // string, or "" with a diagnostic.
 bool CanonicalParam(const std::string& node, const ParamDecl& decl, const ParamValue& given,
                     std::string* canonical, Diagnostics* errors) {
-  const std::string what = "node '" + node + "': parameter '" + decl.name + "' (" +
-                           ParamTypeName(decl.type) + ")";
+  const std::string what =
+      "node '" + node + "': parameter '" + decl.name + "' (" + ParamTypeName(decl.type) + ")";
   if (given.value.is_list && !IsListType(decl.type)) {
     errors->push_back({given.value_where, what + ": expected a single value, got a list"});
     return false;
@@ -80,7 +81,8 @@ bool CanonicalParam(const std::string& node, const ParamDecl& decl, const ParamV
     if (!p.empty() && p.is_relative()) p = given.base_dir / p;
     items = {p.empty() ? "" : p.lexically_normal().string()};
   }
-  const std::string why = ValidateParamValue(decl, IsListType(decl.type) ? JoinList(items) : items.front());
+  const std::string why =
+      ValidateParamValue(decl, IsListType(decl.type) ? JoinList(items) : items.front());
   std::vector<std::string> canon;
   for (const auto& item : items) canon.push_back(CanonicalItem(decl.type, item));
   const std::string value = IsListType(decl.type) ? JoinList(canon) : canon.front();
@@ -187,8 +189,8 @@ void VariantChecker::CheckParams(const NodeSpec& node, const runtime::StageEntry
   try {
     out->params = runtime::CheckStageParams(stage, given);
   } catch (const std::exception& e) {
-    Fail(node.stage_where, "node '" + node.name + "': parameters refused by stage '" + stage.id +
-                               "': " + e.what());
+    Fail(node.stage_where,
+         "node '" + node.name + "': parameters refused by stage '" + stage.id + "': " + e.what());
   }
 }
 
@@ -215,8 +217,9 @@ void VariantChecker::CheckInputs(const NodeSpec& node, const runtime::StageEntry
     for (const Wire& wire : spec.wires) {
       const NodeSpec* from = FindNode(wire.node);
       if (!from) {
-        Fail(wire.where, "node '" + node.name + "': input '" + port_name + "' reads unknown node '" +
-                             wire.node + "'" + Hint(wire.node, node_names_) +
+        Fail(wire.where, "node '" + node.name + "': input '" + port_name +
+                             "' reads unknown node '" + wire.node + "'" +
+                             Hint(wire.node, node_names_) +
                              "; expected NODE.PORT with NODE one of: " + JoinNames(node_names_));
         continue;
       }
@@ -228,16 +231,16 @@ void VariantChecker::CheckInputs(const NodeSpec& node, const runtime::StageEntry
       auto o = std::find_if(outputs.begin(), outputs.end(),
                             [&](const runtime::PortDecl& p) { return out_port == p.name; });
       if (o == outputs.end()) {
-        Fail(wire.where, "node '" + node.name + "': node '" + wire.node + "' (" +
-                             st->second->id + ") has no output '" + wire.port + "'" +
+        Fail(wire.where, "node '" + node.name + "': node '" + wire.node + "' (" + st->second->id +
+                             ") has no output '" + wire.port + "'" +
                              Hint(wire.port, PortNames(outputs)) +
                              "; expected one of: " + JoinNames(PortNames(outputs)));
         continue;
       }
       if (o->artifact_type != port->artifact_type) {
-        Fail(wire.where, "node '" + node.name + "': input '" + port_name + "' expects artifact type '" +
-                             port->artifact_type + "' but " + wire.node + "." + out_port +
-                             " gives '" + o->artifact_type + "'");
+        Fail(wire.where, "node '" + node.name + "': input '" + port_name +
+                             "' expects artifact type '" + port->artifact_type + "' but " +
+                             wire.node + "." + out_port + " gives '" + o->artifact_type + "'");
         continue;
       }
       out->inputs.push_back({port_name, port->artifact_type, wire.node, out_port});
@@ -246,8 +249,8 @@ void VariantChecker::CheckInputs(const NodeSpec& node, const runtime::StageEntry
   for (const auto& port : inputs)
     if (!(port.flags & LF_PORT_OPTIONAL) && !node.inputs.count(port.name))
       Fail(node.where, "node '" + node.name + "': required input '" + port.name + "' (" +
-                           port.artifact_type + ") is not wired; expected inputs: {" +
-                           port.name + ": NODE.PORT}");
+                           port.artifact_type + ") is not wired; expected inputs: {" + port.name +
+                           ": NODE.PORT}");
 }
 
 bool VariantChecker::Order(std::vector<ResolvedNode> nodes, ResolvedGraph* out) {
@@ -256,7 +259,8 @@ bool VariantChecker::Order(std::vector<ResolvedNode> nodes, ResolvedGraph* out) 
   for (const auto& [node, from] : edges_) read.insert(from.begin(), from.end());
   std::set<std::string> done;  // ordered, or without a stage (reported elsewhere)
   for (const auto& name : node_names_)
-    if (std::none_of(nodes.begin(), nodes.end(), [&](const ResolvedNode& n) { return n.name == name; }))
+    if (std::none_of(nodes.begin(), nodes.end(),
+                     [&](const ResolvedNode& n) { return n.name == name; }))
       done.insert(name);
   while (!nodes.empty()) {
     auto ready = std::find_if(nodes.begin(), nodes.end(), [&](const ResolvedNode& n) {
@@ -276,24 +280,28 @@ bool VariantChecker::Order(std::vector<ResolvedNode> nodes, ResolvedGraph* out) 
   while (true) {
     std::string next;
     for (const auto& u : upstream[path.back()])
-      if (!done.count(u)) { next = u; break; }
+      if (!done.count(u)) {
+        next = u;
+        break;
+      }
     if (next.empty()) return false;  // not reachable: a blocked node has a pending input
     auto seen = std::find(path.begin(), path.end(), next);
     if (seen != path.end()) {
       std::vector<std::string> cycle(seen, path.end());
       std::reverse(cycle.begin(), cycle.end());  // data-flow order
       // Start at the node written first in the file.
-      auto first_written = std::min_element(cycle.begin(), cycle.end(), [&](const auto& a, const auto& b) {
-        return std::find(node_names_.begin(), node_names_.end(), a) <
-               std::find(node_names_.begin(), node_names_.end(), b);
-      });
+      auto first_written =
+          std::min_element(cycle.begin(), cycle.end(), [&](const auto& a, const auto& b) {
+            return std::find(node_names_.begin(), node_names_.end(), a) <
+                   std::find(node_names_.begin(), node_names_.end(), b);
+          });
       std::rotate(cycle.begin(), first_written, cycle.end());
       std::string text;
       for (const auto& n : cycle) text += n + " -> ";
       text += cycle.front();
       const NodeSpec* first = FindNode(cycle.front());
-      Fail(first ? first->where : SourceLocation{}, "cycle in the graph: " + text +
-                                                        " (expected a graph without cycles)");
+      Fail(first ? first->where : SourceLocation{},
+           "cycle in the graph: " + text + " (expected a graph without cycles)");
       return false;
     }
     path.push_back(next);

@@ -74,16 +74,18 @@ nodes:
 
 TEST(GraphParse, UnquotedVariablesInFlowMappings) {
   // `{count: ${count}}` is not valid YAML as such; the graph format accepts it.
-  const Parsed p = Parse("locforge: 1\nvars: {n: 8, s: [1, 2]}\nnodes:\n"
-                         "  a: {stage: source/images, params: {count: ${n}, scales: ${s}, tag: x${n}y}}\n"
-                         "  b: {stage: source/images, params: {count: ${nn}}}\n");
+  const Parsed p = Parse(
+      "locforge: 1\nvars: {n: 8, s: [1, 2]}\nnodes:\n"
+      "  a: {stage: source/images, params: {count: ${n}, scales: ${s}, tag: x${n}y}}\n"
+      "  b: {stage: source/images, params: {count: ${nn}}}\n");
   EXPECT_FALSE(p.ok);
   const NodeSpec& a = NodeOf(p.graph, "a");
   EXPECT_EQ(a.params.at("count").value.scalar(), "8");
   EXPECT_EQ(a.params.at("scales").value.items, (std::vector<std::string>{"1", "2"}));
   EXPECT_EQ(a.params.at("tag").value.scalar(), "x8y");
-  EXPECT_EQ(p.Text(), "/graphs/g.yaml:5:45: error: unknown variable 'nn' (did you mean 'n'?); "
-                      "expected one of: n, s\n");
+  EXPECT_EQ(p.Text(),
+            "/graphs/g.yaml:5:45: error: unknown variable 'nn' (did you mean 'n'?); "
+            "expected one of: n, s\n");
 }
 
 TEST(GraphParse, SetOverridesVarsAndNodeParams) {
@@ -91,7 +93,8 @@ TEST(GraphParse, SetOverridesVarsAndNodeParams) {
 vars: {n: 8}
 nodes:
   a: {stage: source/images, params: {count: "${n}", mode: fast}}
-)", {{"n", "3"}, {"a.mode", "slow"}, {"a.scales", "[4, 5]"}});
+)",
+                         {{"n", "3"}, {"a.mode", "slow"}, {"a.scales", "[4, 5]"}});
   ASSERT_TRUE(p.ok) << p.Text();
   const NodeSpec& a = NodeOf(p.graph, "a");
   EXPECT_EQ(a.params.at("count").value.scalar(), "3");
@@ -122,7 +125,8 @@ TEST(GraphParse, SetPinsAMatrixKey) {
 matrix: {local: [sift, r2d2], global: [a, b]}
 nodes:
   n: {stage: "features/${local}"}
-)", {{"local", "r2d2"}});
+)",
+                         {{"local", "r2d2"}});
   ASSERT_TRUE(p.ok) << p.Text();
   ASSERT_EQ(p.graph.variants.size(), 2u);
   EXPECT_EQ(p.graph.variants[0].name, "local=r2d2,global=a");
@@ -161,22 +165,30 @@ nodes:
     stage: source/images
 )");
   EXPECT_FALSE(p.ok);
-  EXPECT_NE(p.Text().find("g.yaml:5:24: error: duplicate key 'count'"), std::string::npos) << p.Text();
+  EXPECT_NE(p.Text().find("g.yaml:5:24: error: duplicate key 'count'"), std::string::npos)
+      << p.Text();
   EXPECT_NE(p.Text().find("g.yaml:6:3: error: duplicate key 'a'"), std::string::npos) << p.Text();
 }
 
 TEST(GraphParse, SyntaxErrorAndMissingVersion) {
   Parsed p = Parse("locforge: 1\nnodes:\n  a: {stage: [x\n");
   EXPECT_FALSE(p.ok);
-  EXPECT_NE(p.Text().find("g.yaml:4:1: error: YAML syntax: end of sequence flow not found"), std::string::npos) << p.Text();
+  EXPECT_NE(p.Text().find("g.yaml:4:1: error: YAML syntax: end of sequence flow not found"),
+            std::string::npos)
+      << p.Text();
   EXPECT_NE(p.Text().find("YAML syntax"), std::string::npos) << p.Text();
   p = Parse("nodes:\n  a: {stage: source/images}\n");
-  EXPECT_EQ(p.Text(), "/graphs/g.yaml:1:1: error: missing 'locforge: 1' (the graph format version)\n");
+  EXPECT_EQ(p.Text(),
+            "/graphs/g.yaml:1:1: error: missing 'locforge: 1' (the graph format version)\n");
   p = Parse("locforge: 2\nnodes:\n  a: {stage: source/images}\n");
-  EXPECT_EQ(p.Text(), "/graphs/g.yaml:1:11: error: unsupported graph format version; expected 'locforge: 1'\n");
+  EXPECT_EQ(
+      p.Text(),
+      "/graphs/g.yaml:1:11: error: unsupported graph format version; expected 'locforge: 1'\n");
   p = Parse("locforge: 1\nnode:\n  a: {stage: source/images}\n");
-  EXPECT_NE(p.Text().find("g.yaml:2:1: error: unknown top-level key 'node' (did you mean 'nodes'?)"),
-            std::string::npos) << p.Text();
+  EXPECT_NE(
+      p.Text().find("g.yaml:2:1: error: unknown top-level key 'node' (did you mean 'nodes'?)"),
+      std::string::npos)
+      << p.Text();
 }
 
 TEST(GraphCheck, ValidGraphIsOrderedTopologically) {
@@ -186,7 +198,8 @@ nodes:
   match: {stage: match/pairs, inputs: {features: feats.features}}
   feats: {stage: features/sift, inputs: {images: imgs}, params: {count: 5, scales: [1, 2.0]}}
   imgs: {stage: source/images, params: {count: "0010", verbose: yes}}
-)", {}, &out);
+)",
+                                   {}, &out);
   ASSERT_EQ(errors, "");
   ASSERT_EQ(out.size(), 1u);
   const auto& nodes = out[0].nodes;
@@ -225,20 +238,31 @@ nodes:
   c: {stage: source/images, params: {mode: fsat}}
   d: {stage: source/images, params: {count: [1, 2]}}
 )");
-  EXPECT_NE(e.find("g.yaml:3:45: error: node 'a': parameter 'count' (int): expected an integer, got 'many'"),
-            std::string::npos) << e;
-  EXPECT_NE(e.find("g.yaml:4:45: error: node 'b': parameter 'count' (int): value 0 is out of range [1, +inf]"),
-            std::string::npos) << e;
-  EXPECT_NE(e.find("g.yaml:5:44: error: node 'c': parameter 'mode' (enum): 'fsat' is not one of {fast, bad, slow} (did you mean 'fast'?)"),
-            std::string::npos) << e;
-  EXPECT_NE(e.find("g.yaml:6:45: error: node 'd': parameter 'count' (int): expected a single value, got a list"),
-            std::string::npos) << e;
+  EXPECT_NE(
+      e.find(
+          "g.yaml:3:45: error: node 'a': parameter 'count' (int): expected an integer, got 'many'"),
+      std::string::npos)
+      << e;
+  EXPECT_NE(e.find("g.yaml:4:45: error: node 'b': parameter 'count' (int): value 0 is out of range "
+                   "[1, +inf]"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("g.yaml:5:44: error: node 'c': parameter 'mode' (enum): 'fsat' is not one of "
+                   "{fast, bad, slow} (did you mean 'fast'?)"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("g.yaml:6:45: error: node 'd': parameter 'count' (int): expected a single "
+                   "value, got a list"),
+            std::string::npos)
+      << e;
 }
 
 TEST(GraphCheck, PluginCheckRefusal) {
-  const std::string e = Check("locforge: 1\nnodes:\n  a: {stage: source/images, params: {mode: bad}}\n");
-  EXPECT_EQ(e, "/graphs/g.yaml:3:14: error: node 'a': parameters refused by stage 'source/images': "
-               "source/images: mode 'bad' is refused by Check()\n");
+  const std::string e =
+      Check("locforge: 1\nnodes:\n  a: {stage: source/images, params: {mode: bad}}\n");
+  EXPECT_EQ(e,
+            "/graphs/g.yaml:3:14: error: node 'a': parameters refused by stage 'source/images': "
+            "source/images: mode 'bad' is refused by Check()\n");
 }
 
 TEST(GraphCheck, RequiredParamAndMissingPath) {
@@ -253,12 +277,15 @@ TEST(GraphCheck, RequiredParamAndMissingPath) {
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(out[0].nodes[0].params.at("root"), (dir / "data").string());
   // From --set: relative to the current directory.
-  const std::string e = Check("locforge: 1\nnodes:\n  a: {stage: source/folder, params: {root: data}}\n",
-                              {{"a.root", "data"}}, nullptr, graph, "/elsewhere");
-  EXPECT_EQ(e, "--set a.root=data: error: node 'a': parameter 'root' (path): '/elsewhere/data' does "
-               "not exist (expected an existing file or folder)\n");
+  const std::string e =
+      Check("locforge: 1\nnodes:\n  a: {stage: source/folder, params: {root: data}}\n",
+            {{"a.root", "data"}}, nullptr, graph, "/elsewhere");
+  EXPECT_EQ(e,
+            "--set a.root=data: error: node 'a': parameter 'root' (path): '/elsewhere/data' does "
+            "not exist (expected an existing file or folder)\n");
   EXPECT_EQ(Check("locforge: 1\nnodes:\n  a: {stage: source/folder}\n"),
-            "/graphs/g.yaml:3:3: error: node 'a': required parameter 'root' (path, input folder) is missing\n");
+            "/graphs/g.yaml:3:3: error: node 'a': required parameter 'root' (path, input folder) "
+            "is missing\n");
   fs::remove_all(dir);
 }
 
@@ -273,19 +300,31 @@ nodes:
   m2: {stage: match/pairs}
   m3: {stage: match/pairs, inputs: {features: [f2, f3]}}
 )");
-  EXPECT_NE(e.find("g.yaml:4:47: error: node 'f1': input 'images' reads unknown node 'imgz' (did you mean 'imgs'?)"),
-            std::string::npos) << e;
-  EXPECT_NE(e.find("g.yaml:5:47: error: node 'f2': node 'imgs' (source/images) has no output 'imagez' (did you mean 'images'?)"),
-            std::string::npos) << e;
-  EXPECT_NE(e.find("g.yaml:6:39: error: node 'f3': stage 'features/sift' has no input 'imags' (did you mean 'images'?)"),
-            std::string::npos) << e;
-  EXPECT_NE(e.find("g.yaml:7:47: error: node 'm1': input 'features' expects artifact type 'kapture.features' but imgs.images gives 'kapture.dataset'"),
-            std::string::npos) << e;
-  EXPECT_NE(e.find("g.yaml:8:3: error: node 'm2': required input 'features' (kapture.features) is not wired"),
-            std::string::npos) << e;
+  EXPECT_NE(e.find("g.yaml:4:47: error: node 'f1': input 'images' reads unknown node 'imgz' (did "
+                   "you mean 'imgs'?)"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("g.yaml:5:47: error: node 'f2': node 'imgs' (source/images) has no output "
+                   "'imagez' (did you mean 'images'?)"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("g.yaml:6:39: error: node 'f3': stage 'features/sift' has no input 'imags' (did "
+                   "you mean 'images'?)"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("g.yaml:7:47: error: node 'm1': input 'features' expects artifact type "
+                   "'kapture.features' but imgs.images gives 'kapture.dataset'"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("g.yaml:8:3: error: node 'm2': required input 'features' (kapture.features) is "
+                   "not wired"),
+            std::string::npos)
+      << e;
   EXPECT_NE(e.find("g.yaml:9:37: error: node 'm3': input 'features' takes exactly one wire"),
-            std::string::npos) << e;
-  EXPECT_NE(e.find("g.yaml:6:3: error: node 'f3': required input 'images'"), std::string::npos) << e;
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("g.yaml:6:3: error: node 'f3': required input 'images'"), std::string::npos)
+      << e;
 }
 
 TEST(GraphCheck, MultipleWiresOnAMultiplePort) {
@@ -296,7 +335,9 @@ nodes:
   a: {stage: features/sift, inputs: {images: imgs}}
   b: {stage: features/sift, inputs: {images: imgs}, params: {count: 3}}
   all: {stage: filter/features, inputs: {features: [a.features, b.features]}}
-)", {}, &out), "");
+)",
+                  {}, &out),
+            "");
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(out[0].nodes.back().inputs.size(), 2u);
 }

@@ -61,8 +61,7 @@ void Reporter::Progress(const std::string& label, uint64_t done, uint64_t total,
   }
   // Plain output: every 10% or every 5 seconds.
   const uint64_t step = total >= 10 ? total / 10 : 1;
-  if (done != total && done < last_reported_ + step &&
-      now - last_time_ < std::chrono::seconds(5))
+  if (done != total && done < last_reported_ + step && now - last_time_ < std::chrono::seconds(5))
     return;
   last_reported_ = done;
   last_time_ = now;

@@ -33,7 +33,7 @@ class Reporter {
   void FileOnly(const std::string& text);
 
  private:
-  void ClearBar();  // call with mutex_ held
+  void ClearBar();                      // call with mutex_ held
   void Write(const std::string& text);  // a whole line, console + log
 
   std::ostream& out_;

@@ -47,12 +47,11 @@ class FakeStages {
     Add("source/folder", LF_STAGE_RUNNABLE, {root}, {}, {{"images", "kapture.dataset"}});
     Add("features/sift", LF_STAGE_RUNNABLE | LF_STAGE_PER_ITEM, {count, scales},
         {{"images", "kapture.dataset"}}, {{"features", "kapture.features"}});
-    Add("match/pairs", LF_STAGE_RUNNABLE,  {},
+    Add("match/pairs", LF_STAGE_RUNNABLE, {},
         {{"features", "kapture.features"}, {"extra", "kapture.features", LF_PORT_OPTIONAL}},
         {{"matches", "kapture.matches"}});
     Add("filter/features", LF_STAGE_RUNNABLE, {},
-        {{"features", "kapture.features", LF_PORT_MULTIPLE}},
-        {{"features", "kapture.features"}});
+        {{"features", "kapture.features", LF_PORT_MULTIPLE}}, {{"features", "kapture.features"}});
     Add("registration/icp", 0, {}, {}, {});
   }
 

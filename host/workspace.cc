@@ -24,8 +24,7 @@ std::string FileStamp(const fs::path& p) {
   std::error_code ec;
   const auto size = fs::file_size(p, ec);
   const auto mtime = fs::last_write_time(p, ec);
-  return std::to_string(ec ? 0 : size) + "@" +
-         std::to_string(mtime.time_since_epoch().count());
+  return std::to_string(ec ? 0 : size) + "@" + std::to_string(mtime.time_since_epoch().count());
 }
 
 }  // namespace
@@ -39,7 +38,8 @@ std::string PathStamp(const fs::path& path) {
   // Entries up to depth 2, sorted so the stamp does not depend on readdir order.
   std::vector<std::string> entries;
   constexpr size_t kMaxEntries = 10000;
-  auto it = fs::recursive_directory_iterator(abs, fs::directory_options::skip_permission_denied, ec);
+  auto it =
+      fs::recursive_directory_iterator(abs, fs::directory_options::skip_permission_denied, ec);
   for (; !ec && it != fs::recursive_directory_iterator() && entries.size() < kMaxEntries;
        it.increment(ec)) {
     if (it.depth() >= 1) it.disable_recursion_pending();
@@ -153,10 +153,18 @@ std::string JsonString(const std::string& s) {
   std::string out = "\"";
   for (unsigned char c : s) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
       default:
         if (c < 0x20) {
           char buf[8];

@@ -21,7 +21,8 @@ TEST(Sha256, KnownVectors) {  // FIPS 180-4 examples
   Sha256 chunked;
   const std::string million(1000000, 'a');
   for (size_t i = 0; i < million.size(); i += 997) chunked.Update(million.substr(i, 997));
-  EXPECT_EQ(chunked.HexDigest(), "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+  EXPECT_EQ(chunked.HexDigest(),
+            "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
 }
 
 class CacheKeyTest : public ::testing::Test {
@@ -83,7 +84,8 @@ TEST_F(CacheKeyTest, PathParamsEnterByContentStamp) {
   EXPECT_NE(k1, k2);
   std::ofstream(dir / "data" / "a.txt") << "longer content";  // size changes
   EXPECT_NE(k2, CacheKey(n, {}));
-  EXPECT_NE(PathStamp(dir / "data").find("sub/b.txt 3@"), std::string::npos) << PathStamp(dir / "data");
+  EXPECT_NE(PathStamp(dir / "data").find("sub/b.txt 3@"), std::string::npos)
+      << PathStamp(dir / "data");
   EXPECT_NE(PathStamp(dir / "nothing").find(" missing"), std::string::npos);
   fs::remove_all(dir);
 }
@@ -103,10 +105,12 @@ TEST(WorkspaceTest, FoldersLinksAndPublish) {
   EXPECT_TRUE(Workspace::IsComplete(dir));
   EXPECT_FALSE(fs::exists(partial));
   ws.Link("", "stats", dir);
-  EXPECT_EQ(fs::read_symlink(ws.LinkPath("", "stats")), fs::path("../cache/stats-aaaaaaaaaaaaaaaa"));
+  EXPECT_EQ(fs::read_symlink(ws.LinkPath("", "stats")),
+            fs::path("../cache/stats-aaaaaaaaaaaaaaaa"));
   EXPECT_TRUE(fs::exists(ws.LinkPath("", "stats") / "out.txt"));
   ws.Link("bins=8", "stats", dir);
-  EXPECT_EQ(ws.LinkPath("bins=8", "stats"), root / "ws" / "variants" / "bins=8" / "nodes" / "stats");
+  EXPECT_EQ(ws.LinkPath("bins=8", "stats"),
+            root / "ws" / "variants" / "bins=8" / "nodes" / "stats");
   EXPECT_TRUE(fs::exists(ws.LinkPath("bins=8", "stats") / "out.txt"));
   // Publishing over a complete folder (--force) replaces it.
   fs::create_directories(partial);
