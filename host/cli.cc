@@ -202,7 +202,12 @@ int Main(const Args& args) {
     if (rest.front() == "kapture" || rest.front() == "colmap")
       return rest.front() == "kapture" ? KaptureCommand({"--help"}) : ColmapCommand({"--help"});
     const std::string text = HelpText(rest.front());
-    if (text.empty()) return UsageError("help", "no such command '" + rest.front() + "'");
+    if (text.empty()) {
+      const std::string hint =
+          DidYouMean(rest.front(), {"plugins", "validate", "run", "kapture", "colmap"});
+      return UsageError("help", "no such command '" + rest.front() + "'" +
+                                    (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
+    }
     std::cout << text;
     return 0;
   }
