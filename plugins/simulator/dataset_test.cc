@@ -8,6 +8,7 @@
 #include "dataset.h"
 #include "kapture_out.h"
 #include "locforge/error.h"
+#include "locforge/kapture/kapture.h"
 #include "testing.h"
 
 namespace locforge::sim {
@@ -116,6 +117,25 @@ TEST_F(TinyDataset, QueriesStayInTheirAreas) {
     if (r[1] == "rig") EXPECT_LT(PoseOf(r, 2).Center().x(), spec.query_split_x);
   for (const auto& r : ReadRows(*dir_ / "test" / "sensors" / "trajectories.txt"))
     if (r[1] == "rig") EXPECT_GT(PoseOf(r, 2).Center().x(), spec.query_split_x);
+}
+
+// The SDK's kapture reader accepts every kapture written, with no problem.
+TEST_F(TinyDataset, SdkKaptureReaderFindsNoProblem) {
+  for (const char* split : {"", "validation", "test"}) {
+    const kapture::KaptureSummary k = kapture::InspectKapture(*dir_ / split);
+    EXPECT_TRUE(k.problems.empty()) << split << ": " << kapture::FormatSummary(k);
+    EXPECT_EQ(k.sensors_by_type.at("camera"), 10);
+    EXPECT_EQ(k.sensors_by_type.at("lidar"), 2);
+    EXPECT_EQ(k.sensors_by_type.at("wheel_encoder"), 1);
+    EXPECT_EQ(k.rig_sensor_entries, 13);
+    for (const auto& r : k.records) EXPECT_EQ(r.missing_files, 0) << r.sensor_type;
+    // A camera's pose read through the SDK equals the one composed from the rig.
+    kapture::Kapture kap(*dir_ / split);
+    const auto* cam = kap.sensors().Find("ind_2");
+    ASSERT_NE(cam, nullptr);
+    ASSERT_TRUE(cam->camera.has_value());
+    EXPECT_EQ(cam->camera->width, 162);
+  }
 }
 
 TEST(Dataset, DeterministicWhateverTheThreads) {

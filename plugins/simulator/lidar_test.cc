@@ -76,7 +76,7 @@ TEST(Lidar, PointsReprojectOntoSceneSurfacesWithinTheNoise) {
       const Eigen::Vector3d world_point = T * p.xyz.cast<double>();
       const auto people = f.crowd.At(t);
       double d = 1e9;
-      for (const auto& q : f.scene.quads) d = std::min(d, DistanceToQuad(q, world_point));
+      for (const auto& q : f.world->quads()) d = std::min(d, DistanceToQuad(q, world_point));
       for (const auto& c : people) {
         const double dc = DistanceToCylinder(c, world_point);
         if (dc < d) d = dc;
@@ -94,7 +94,7 @@ TEST(Lidar, PointsReprojectOntoSceneSurfacesWithinTheNoise) {
       // Negative control: ignoring the motion (scan-start pose for every point).
       const Eigen::Vector3d undistorted = T_start * p.xyz.cast<double>();
       double ds = 1e9;
-      for (const auto& q : f.scene.quads) ds = std::min(ds, DistanceToQuad(q, undistorted));
+      for (const auto& q : f.world->quads()) ds = std::min(ds, DistanceToQuad(q, undistorted));
       for (const auto& c : people) ds = std::min(ds, DistanceToCylinder(c, undistorted));
       within_static += ds < 4 * kSigma;
     }

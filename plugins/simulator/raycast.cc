@@ -22,6 +22,13 @@ double BoxEntry(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const Eige
   return t0;
 }
 
+std::vector<Quad> QuadsOfDay(const Scene& scene, int day) {
+  std::vector<Quad> out;
+  for (const Quad& q : scene.quads)
+    if (q.PresentOn(day)) out.push_back(q);
+  return out;
+}
+
 }  // namespace
 
 bool IntersectQuad(const Quad& q, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
@@ -170,7 +177,7 @@ bool QuadBvh::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, doub
 }
 
 World::World(const Scene& scene, const Crowd& crowd, TextureLibrary* textures, int day)
-    : scene_(scene), crowd_(crowd), bvh_(scene.quads) {
+    : scene_(scene), crowd_(crowd), quads_(QuadsOfDay(scene, day)), bvh_(quads_) {
   for (const auto& m : scene.materials) material_textures_.push_back(textures->Get(m.texture, day));
   for (const auto& p : crowd.people()) person_textures_.push_back(textures->Get(p.texture, day));
 }
@@ -184,13 +191,13 @@ bool World::Cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
 
 Eigen::Vector3f World::Albedo(const Hit& hit, double footprint_m) const {
   const Texture* tex = hit.person >= 0 ? person_textures_[hit.person]
-                                       : material_textures_[scene_.quads[hit.quad].material];
+                                       : material_textures_[quads_[hit.quad].material];
   const double texels = footprint_m / hit.period_m * tex->levels[0].size;
   return tex->Sample(hit.tex_uv.x(), hit.tex_uv.y(), texels);
 }
 
 bool World::Glossy(const Hit& hit) const {
-  return hit.quad >= 0 && scene_.materials[scene_.quads[hit.quad].material].glossy;
+  return hit.quad >= 0 && scene_.materials[quads_[hit.quad].material].glossy;
 }
 
 }  // namespace locforge::sim

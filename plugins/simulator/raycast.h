@@ -33,6 +33,7 @@ bool IntersectCylinder(const Cylinder& c, const Eigen::Vector3d& o, const Eigen:
 class QuadBvh {
  public:
   explicit QuadBvh(const std::vector<Quad>& quads);
+  // Keeps a reference to `quads`, which must outlive the BVH.
   // Nearest quad along o + t d with t in (t_min, hit->t); updates `hit`.
   bool Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, Hit* hit) const;
   size_t num_nodes() const { return nodes_.size(); }
@@ -56,6 +57,8 @@ class World {
   World(const Scene& scene, const Crowd& crowd, TextureLibrary* textures, int day);
 
   const Scene& scene() const { return scene_; }
+  // The scene's quads present on this world's day (Hit::quad indexes these).
+  const std::vector<Quad>& quads() const { return quads_; }
   const Crowd& crowd() const { return crowd_; }
 
   // Nearest surface along the unit ray o + t d, t > t_min, among the quads
@@ -71,6 +74,7 @@ class World {
  private:
   const Scene& scene_;
   const Crowd& crowd_;
+  std::vector<Quad> quads_;
   QuadBvh bvh_;
   std::vector<const Texture*> material_textures_;
   std::vector<const Texture*> person_textures_;

@@ -128,12 +128,14 @@ void AddBox(const BoxSpec& box, Scene* scene) {
     scene->quads.push_back(VerticalQuad(box.center + normals[side] * offsets[side], normals[side],
                                         widths[side], box.size.z(), scene->AddMaterial(m),
                                         box.tile_m));
+    scene->quads.back().days = box.days;
   }
   if (!box.top.texture.empty()) {
     const Eigen::Vector3d c = box.center + Eigen::Vector3d(0, 0, half.z());
     const Eigen::Vector3d u = ax * box.size.x(), v = ay * box.size.y();
     scene->quads.push_back(
         MakeQuad(c - 0.5 * u - 0.5 * v, u, v, scene->AddMaterial(box.top), box.tile_m));
+    scene->quads.back().days = box.days;
   }
 }
 
@@ -141,6 +143,7 @@ void AddPanel(const PanelSpec& p, Scene* scene) {
   const double yaw = p.yaw_deg * kPi / 180;
   scene->quads.push_back(VerticalQuad(p.center, {std::cos(yaw), std::sin(yaw), 0}, p.width,
                                       p.height, scene->AddMaterial(p.material), p.tile_m));
+  scene->quads.back().days = p.days;
 }
 
 Scene BuildScene(const SceneSpec& s) {
@@ -303,6 +306,23 @@ SceneSpec GenerateFloor(const FloorOptions& o, uint64_t seed) {
         DecorateFace(c + n * half, n, width, rng, &poster_counter, &panels);
       }
       for (const auto& p : panels) s.panels.push_back(p);
+      // Kiosks against the block, moved between days (present on about half of them).
+      for (const auto& n : faces) {
+        if (u01(rng) > 0.5) continue;
+        const bool along_y = std::abs(n.x()) > 0;
+        const double half = along_y ? o.block_x / 2 : o.block_y / 2;
+        const double room = (along_y ? o.block_y : o.block_x) / 2 - 1.2;
+        const Eigen::Vector3d t = Eigen::Vector3d::UnitZ().cross(n);
+        BoxSpec kiosk;
+        kiosk.center = c + n * (half + 0.28) + t * (room * (2 * u01(rng) - 1));
+        kiosk.center.z() = 0.9;
+        kiosk.size = along_y ? Eigen::Vector3d(0.5, 1.4, 1.8) : Eigen::Vector3d(1.4, 0.5, 1.8);
+        kiosk.sides = {{Key("poster", poster_counter++)}};
+        kiosk.top = {"plain:2"};
+        kiosk.tile_m = 0;
+        kiosk.days = static_cast<uint32_t>(rng()) | 1u;  // always there on day 0
+        s.boxes.push_back(kiosk);
+      }
       if (i == 0 && j == 0)
         for (auto p : panels) {
           p.center -= c;
@@ -367,6 +387,19 @@ struct YamlReader {
       return {n["texture"].as<std::string>(), n["glossy"] && n["glossy"].as<bool>()};
     Fail(n, field, "expected a texture key or {texture: ..., glossy: ...}");
   }
+  // `days: [0, 2]` -> bit mask; absent -> 0 (every day).
+  uint32_t Days(const YAML::Node& map, const std::string& where) const {
+    const YAML::Node n = map["days"];
+    if (!n) return 0;
+    if (!n.IsSequence() || n.size() == 0) Fail(n, where + ".days", "expected a non-empty list of days");
+    uint32_t mask = 0;
+    for (const auto& d : n) {
+      const double day = Number(d, where + ".days");
+      if (day < 0 || day != std::floor(day)) Fail(d, where + ".days", "days are integers >= 0");
+      mask |= 1u << (static_cast<int>(day) % 32);
+    }
+    return mask;
+  }
   double Get(const YAML::Node& map, const char* key, double fallback, const std::string& where) const {
     return map[key] ? Number(map[key], where + "." + key) : fallback;
   }
@@ -427,6 +460,7 @@ SceneSpec LoadSceneSpec(const std::filesystem::path& yaml_file) {
           box.sides.push_back(r.Mat(b["sides"], where + ".sides"));
       }
       if (b["top"]) box.top = r.Mat(b["top"], where + ".top");
+      box.days = r.Days(b, where);
       s.boxes.push_back(box);
     }
   }
@@ -442,6 +476,7 @@ SceneSpec LoadSceneSpec(const std::filesystem::path& yaml_file) {
       panel.height = r.Get(p, "height", 1, where);
       panel.tile_m = r.Get(p, "tile_m", 0, where);
       panel.material = r.Mat(p["material"], where + ".material");
+      panel.days = r.Days(p, where);
       s.panels.push_back(panel);
     }
   }

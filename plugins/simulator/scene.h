@@ -35,6 +35,9 @@ struct Quad {
   double tile_m = 0;
   // Added to the metric (u, v) before tiling, so split floors keep a continuous texture.
   Eigen::Vector2d tex_offset = Eigen::Vector2d::Zero();
+  // Days the surface exists (moved objects): bit (day % 32); 0 = every day.
+  uint32_t days = 0;
+  bool PresentOn(int day) const { return days == 0 || ((days >> (day % 32)) & 1u) != 0; }
 
   double width() const { return u_edge.norm(); }
   double height() const { return v_edge.norm(); }
@@ -49,6 +52,7 @@ struct BoxSpec {
   std::vector<Material> sides;
   Material top;             // empty texture: no top face (e.g. boxes reaching the ceiling)
   double tile_m = 2.0;      // texture period of the sides
+  uint32_t days = 0;        // present on days with bit (day % 32) set; 0 = every day
 };
 
 // A vertical rectangle (poster, shop window, signage, glossy panel, temporary
@@ -59,6 +63,7 @@ struct PanelSpec {
   double width = 1, height = 1;
   Material material;
   double tile_m = 0;  // 0: stretched
+  uint32_t days = 0;  // present on days with bit (day % 32) set; 0 = every day
 };
 
 // A rectangular opening in the floor (stairs/escalator well) onto a lower level.
@@ -100,8 +105,9 @@ struct FloorOptions {
 };
 
 // Generates a floor plan with all of the paper's hard cases: identical blocks,
-// textureless temporary walls, glossy panels, signage, pillars, turnstiles and
-// (when there are at least 3 blocks) one block replaced by a floor opening.
+// textureless temporary walls, glossy panels, signage, pillars, turnstiles,
+// kiosks that move between days, and (when there are at least 3 blocks along
+// x) one block replaced by a floor opening.
 SceneSpec GenerateFloor(const FloorOptions& options, uint64_t seed);
 
 // Reads a floor plan from YAML (format in README.md). Throws InputError naming

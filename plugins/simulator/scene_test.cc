@@ -165,3 +165,39 @@ TEST(Scene, PanelsHangBetweenFloorAndCeiling) {
 
 }  // namespace
 }  // namespace locforge::sim
+
+namespace locforge::sim {
+namespace {
+
+TEST(Scene, KiosksMoveBetweenDays) {
+  FloorOptions o;
+  o.blocks_x = 3;
+  o.blocks_y = 2;
+  const Scene scene = BuildScene(GenerateFloor(o, 2));
+  Crowd crowd;
+  TextureLibrary textures(32);
+  std::set<size_t> counts;
+  for (int day = 0; day < 6; ++day) counts.insert(World(scene, crowd, &textures, day).quads().size());
+  EXPECT_GT(counts.size(), 1u);  // the set of surfaces changes from day to day
+  EXPECT_EQ(World(scene, crowd, &textures, 0).quads().size(), World(scene, crowd, &textures, 32).quads().size());
+}
+
+TEST(Scene, YamlDaysSelectWhenAnObjectExists) {
+  const auto dir = locforge::testing::MakeTempDir("sim_scene_days");
+  const auto file = dir / "floor.yaml";
+  std::ofstream(file) << "extent: [0, 0, 12, 8]\n"
+                         "panels:\n  - {center: [6, 4, 1.5], width: 1, height: 1, material: poster:1, days: [1, 3]}\n"
+                         "walk: {nodes: [[2, 4], [10, 4]], edges: [[0, 1]]}\n";
+  const Scene scene = BuildScene(LoadSceneSpec(file));
+  Crowd crowd;
+  TextureLibrary textures(32);
+  EXPECT_EQ(World(scene, crowd, &textures, 1).quads().size(), World(scene, crowd, &textures, 0).quads().size() + 1);
+  EXPECT_EQ(World(scene, crowd, &textures, 3).quads().size(), World(scene, crowd, &textures, 1).quads().size());
+  std::ofstream(file) << "extent: [0, 0, 12, 8]\n"
+                         "panels:\n  - {center: [6, 4, 1.5], material: poster:1, days: [-1]}\n"
+                         "walk: {nodes: [[2, 4], [10, 4]], edges: [[0, 1]]}\n";
+  EXPECT_THROW(LoadSceneSpec(file), InputError);
+}
+
+}  // namespace
+}  // namespace locforge::sim
