@@ -252,6 +252,7 @@ ExportReport ExportToColmap(const kapture::Kapture& k, const fs::path& database,
 
   std::vector<uint32_t> num_keypoints(images.size(), 0);
   std::unordered_map<ImageId, size_t> model_image_index;
+  bool descriptor_dtype_noted = false;
   {
     Database db(temp, Database::Mode::kCreate);
     DatabaseWriter writer(&db, options.batch_size);
@@ -302,9 +303,12 @@ ExportReport ExportToColmap(const kapture::Kapture& k, const fs::path& database,
       if (!desc_type.empty() && k.HasFeatureFile(FeatureKind::kDescriptors, desc_type, image.name)) {
         const kapture::FeatureArray d = k.ReadDescriptors(desc_type, image.name);
         if (d.dtype != kapture::DType::kUint8) {
-          Note(&report.notes, "descriptors " + desc_type + " are " +
-                                  kapture::DTypeName(d.dtype) +
-                                  ", COLMAP stores uint8 only: not exported");
+          if (!descriptor_dtype_noted) {
+            Note(&report.notes, "descriptors " + desc_type + " are " +
+                                    kapture::DTypeName(d.dtype) +
+                                    ", COLMAP stores uint8 only: not exported");
+            descriptor_dtype_noted = true;
+          }
         } else if (d.rows != num_keypoints[i]) {
           Note(&report.notes, "descriptors of " + image.name + " skipped: " +
                                   std::to_string(d.rows) + " rows for " +

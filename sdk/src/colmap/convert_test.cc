@@ -304,6 +304,47 @@ TEST_F(ConvertTest, ExportComposesRigPoses) {
   EXPECT_FALSE(db.ReadImages()[1].prior_qvec.has_value());
 }
 
+// Real rig data with third-party features: virtual_gallery_tutorial's
+// rig, R2D2 keypoints (x, y, scale: 3 columns -> COLMAP's 4 with orientation
+// 0) and float32 descriptors (COLMAP has uint8 only: skipped with a note).
+TEST_F(ConvertTest, ExportsTheVirtualGalleryRigWithR2d2Keypoints) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(root, "data/kapture/virtual_gallery_tutorial");
+  kapture::Kapture k(root / "mapping");
+  k.AttachFeatures(FeatureKind::kKeypoints, "r2d2_500", root / "local_features/r2d2_500/keypoints");
+  k.AttachFeatures(FeatureKind::kDescriptors, "r2d2_500",
+                   root / "local_features/r2d2_500/descriptors");
+  const ExportReport r = ExportToColmap(k, tmp_ / "vg.db", tmp_ / "model");
+  EXPECT_EQ(r.keypoints_type, "r2d2_500");
+  EXPECT_EQ(r.cameras, 2);  // the tutorial ships 2 of the rig's cameras
+  EXPECT_EQ(r.images, 12);
+  EXPECT_EQ(r.posed_images, 12);
+  EXPECT_EQ(r.keypoint_images, 12);
+  EXPECT_EQ(r.descriptor_images, 0);
+  ASSERT_EQ(r.notes.size(), 1u);
+  EXPECT_NE(r.notes[0].find("float32, COLMAP stores uint8 only"), std::string::npos) << r.notes[0];
+  Database db(tmp_ / "vg.db");
+  const auto images = db.ReadImages();
+  const KeypointsBlob kp = *db.ReadKeypoints(1);
+  EXPECT_EQ(kp.cols, 4u);
+  const kapture::FeatureArray theirs = k.ReadKeypoints("r2d2_500", images[0].name);
+  ASSERT_EQ(kp.rows, theirs.rows);
+  for (int64_t i = 0; i < theirs.rows; ++i) {
+    EXPECT_EQ(kp.at(i, 0), theirs.At(i, 0));
+    EXPECT_EQ(kp.at(i, 1), theirs.At(i, 1));
+    EXPECT_EQ(kp.at(i, 2), theirs.At(i, 2));
+    EXPECT_EQ(kp.at(i, 3), 0.0f);
+  }
+  // Each camera pose is the rig pose composed with the camera's rig extrinsics.
+  const Reconstruction model = ReadModelText(tmp_ / "model");
+  for (const kapture::DataRecord& rec : k.ReadDataRecords(kapture::kSensorCamera)) {
+    const ModelImage* image = model.FindImageByName(rec.path);
+    ASSERT_NE(image, nullptr) << rec.path;
+    const Pose rig = *k.trajectories().Find(rec.timestamp, "training_rig");
+    const Pose cam_from_rig = k.rigs().Find("training_rig")->Find(rec.device_id)->sensor_from_rig;
+    EXPECT_LT(PoseDistance(image->CameraFromWorld(), cam_from_rig * rig), 1e-12) << rec.path;
+  }
+}
+
 TEST_F(ConvertTest, RefusesBadRequests) {
   LOCFORGE_SHARED_PATH_OR_SKIP(root, kMaupertuis);
   ExportOptions options;
