@@ -122,6 +122,10 @@ typedef struct LfArtifact {
 
 /* ---- Run context (host -> plugin) -------------------------------------- */
 
+/* Declared here because the run context's component callbacks name it: in C
+ * a struct first named inside a parameter list would be a different type. */
+struct LfStageInfo;
+
 enum { LF_LOG_DEBUG = 0, LF_LOG_INFO = 1, LF_LOG_WARNING = 2 };
 
 typedef struct LfRunContext {
