@@ -95,7 +95,7 @@ class Simulator : public Stage<SimulatorOptions> {
     hooks.cancelled = [&] { return ctx.cancelled(); };
     const DatasetSummary s = GenerateDataset(options().ToSimOptions(), ctx.output_dir(), ctx.threads(), hooks);
     ctx.Info("simulated " + std::to_string(s.sequences.size()) + " sequences: " + std::to_string(s.images) +
-             " images, " + std::to_string(s.scans) + " LiDAR scans in " + ctx.output_dir().string());
+             " images, " + std::to_string(s.scans) + " LiDAR scans");
   }
 };
 
