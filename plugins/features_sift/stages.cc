@@ -1,0 +1,163 @@
+// Stages: features/sift (per image) and features/import (an existing kapture
+// feature folder as a kapture.local_features artifact).
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <set>
+
+#include "locforge/fs.h"
+#include "locforge/kapture/kapture.h"
+#include "locforge/plugin.h"
+#include "sift.h"
+
+namespace locforge::sift {
+
+namespace {
+
+namespace k = locforge::kapture;
+
+
+}  // namespace
+
+k::FeatureInfo KeypointsInfo() {
+  k::FeatureInfo info;
+  info.kind = k::FeatureKind::kKeypoints;
+  info.name = "SIFT";
+  info.dtype_name = "float32";
+  info.dtype = k::DType::kFloat32;
+  info.dsize = 4;
+  return info;
+}
+
+k::FeatureInfo DescriptorsInfo(const SiftOptions& o) {
+  k::FeatureInfo info;
+  info.kind = k::FeatureKind::kDescriptors;
+  info.name = o.root_sift ? "RootSIFT" : "SIFT";
+  info.dtype_name = o.descriptor_dtype;
+  k::ParseDType(o.descriptor_dtype, &info.dtype);
+  info.dsize = 128;
+  info.keypoints_type = o.type;
+  info.metric_type = "L2";
+  return info;
+}
+
+class SiftStage : public PerItemStage<SiftOptions> {
+ public:
+  static StageMeta Meta() {
+    return {"features", "sift", "OpenCV SIFT keypoints and (Root)SIFT descriptors per image",
+            {{"images", "kapture.dataset", "images to describe (records_camera.txt)"}},
+            {{"features", "kapture.local_features", "keypoints + descriptors of one type"}}};
+  }
+  using PerItemStage::PerItemStage;
+
+  std::vector<std::string> ListItems(RunContext& ctx) override {
+    k::Kapture dataset(ctx.Input("images"));
+    std::set<std::string> images;
+    dataset.ForEachDataRecord("camera", [&](const k::DataRecord& r) { images.insert(r.path); });
+    return {images.begin(), images.end()};
+  }
+
+  void ProcessItem(RunContext& ctx, const std::string& image) override {
+    const fs::path root = ctx.Input("images");
+    const fs::path file = SafeJoin(root / k::layout::kRecordsData, image, "records_camera.txt");
+    const cv::Mat gray = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
+    if (gray.empty())
+      throw InputError(k::layout::RecordsFile("camera"), 0, "image_path",
+                       "cannot read image '" + image + "' at " + file.string());
+    const SiftFeatures f = ExtractSift(gray, options());
+    const fs::path out = ctx.output_dir();
+    k::WriteImageFeatures(out, options().type, KeypointsInfo(), image,
+                          k::FeatureArray::From(k::DType::kFloat32, 4, f.keypoints));
+    const k::FeatureInfo dinfo = DescriptorsInfo(options());
+    if (dinfo.dtype == k::DType::kUint8)
+      k::WriteImageFeatures(out, options().type, dinfo, image,
+                            k::FeatureArray::From(k::DType::kUint8, 128, DescriptorsToUint8(f.descriptors)));
+    else
+      k::WriteImageFeatures(out, options().type, dinfo, image,
+                            k::FeatureArray::From(k::DType::kFloat32, 128, f.descriptors));
+  }
+
+  void Finalize(RunContext& ctx) override {
+    k::WriteFeatureSetInfo(ctx.output_dir(), options().type, KeypointsInfo());
+    k::WriteFeatureSetInfo(ctx.output_dir(), options().type, DescriptorsInfo(options()));
+  }
+};
+
+// ---------------------------------------------------------------- import
+
+struct ImportOptions {
+  std::string path;  // Feature folder: <path>/keypoints + <path>/descriptors.
+  std::string type;  // Type name in the artifact; "" = the keypoints type of the folder.
+  static void Declare(ParamSchema<ImportOptions>& s) {
+    s.Add("path", &ImportOptions::path,
+          "folder holding keypoints/ and descriptors/ (kapture-localization's "
+          "local_features/<type>), or a kapture root with reconstruction/keypoints/<type>")
+        .Path()
+        .Required();
+    s.Add("type", &ImportOptions::type,
+          "feature type to import from a kapture root / name in the output (default: the folder's)");
+  }
+  bool Check(std::string* why) const {
+    if (!type.empty() && !ValidTypeName(type)) {
+      *why = "parameter 'type': '" + type + "' is not a folder name";
+      return false;
+    }
+    return true;
+  }
+};
+
+class ImportStage : public Stage<ImportOptions> {
+ public:
+  static StageMeta Meta() {
+    return {"features", "import",
+            "Imports an existing kapture keypoints + descriptors folder (validated copy)",
+            {},
+            {{"features", "kapture.local_features", "the imported keypoints + descriptors"}}};
+  }
+  using Stage::Stage;
+
+  void Run(RunContext& ctx) override {
+    const fs::path src = fs::absolute(options().path);
+    fs::path kpt_dir, desc_dir;
+    std::string type = options().type;
+    if (fs::is_directory(src / "keypoints") && fs::exists(src / "keypoints" / "keypoints.txt")) {
+      kpt_dir = src / "keypoints";
+      desc_dir = src / "descriptors";
+      if (type.empty()) type = src.filename().string();
+    } else if (fs::is_directory(src / "reconstruction")) {
+      k::Kapture kap(src);
+      const auto sets = kap.FeatureSets(k::FeatureKind::kKeypoints);
+      if (type.empty()) {
+        if (sets.size() != 1)
+          throw InputError(src.string(), 0, "type",
+                           std::to_string(sets.size()) + " keypoints types here; set 'type'");
+        type = sets.front().type;
+      }
+      kpt_dir = kap.GetFeatureSet(k::FeatureKind::kKeypoints, type).dir;
+      desc_dir = kap.GetFeatureSet(k::FeatureKind::kDescriptors, type).dir;
+    } else {
+      throw InputError(src.string(), 0, "path",
+                       "neither keypoints/keypoints.txt nor a kapture reconstruction/ here");
+    }
+    if (!fs::exists(desc_dir / "descriptors.txt"))
+      throw InputError((desc_dir / "descriptors.txt").string(), 0, "", "missing");
+    if (!ValidTypeName(type)) throw InputError(src.string(), 0, "type", "'" + type + "' is not a folder name");
+    const fs::path out = ctx.output_dir();
+    const fs::path out_kpt = out / k::layout::FeatureRoot(k::FeatureKind::kKeypoints) / type;
+    const fs::path out_desc = out / k::layout::FeatureRoot(k::FeatureKind::kDescriptors) / type;
+    const int64_t nk = k::CopyFeatureFolder(k::FeatureKind::kKeypoints, kpt_dir, out_kpt, true);
+    const int64_t nd = k::CopyFeatureFolder(k::FeatureKind::kDescriptors, desc_dir, out_desc, true);
+    // The descriptors must name the keypoints type they now live beside.
+    k::FeatureInfo dinfo = k::ReadFeatureInfo(out_desc / "descriptors.txt", k::FeatureKind::kDescriptors);
+    if (dinfo.keypoints_type != type) {
+      dinfo.keypoints_type = type;
+      k::WriteFeatureSetInfo(out, type, dinfo);
+    }
+    ctx.Info("imported " + std::to_string(nk) + " keypoints and " + std::to_string(nd) +
+             " descriptors files of type '" + type + "'");
+  }
+};
+
+}  // namespace locforge::sift
+
+LOCFORGE_PLUGIN("features_sift", "1.0.0", "OpenCV SIFT local features and feature import",
+                locforge::sift::SiftStage, locforge::sift::ImportStage)
