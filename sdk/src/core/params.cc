@@ -163,7 +163,7 @@ std::map<std::string, std::string> ResolveParams(
   for (const auto& d : decls) names.push_back(d.name);
   for (const auto& [name, value] : given) {
     auto it = std::find_if(decls.begin(), decls.end(),
-                           [&](const ParamDecl& d) { return d.name == name; });
+                           [&n = name](const ParamDecl& d) { return d.name == n; });
     if (it == decls.end()) {
       std::string hint = DidYouMean(name, names);
       throw ParamError("unknown parameter '" + name + "'" +

@@ -237,11 +237,13 @@ std::vector<fs::path> Registry::DefaultSearchPath() {
   std::vector<fs::path> candidates;
   const char* no_default = std::getenv("LOCFORGE_NO_DEFAULT_PLUGINS");
   if (!(no_default && std::string(no_default) == "1")) {
-#ifdef LOCFORGE_BUILD_PLUGIN_DIR
-    candidates.emplace_back(LOCFORGE_BUILD_PLUGIN_DIR);
-#endif
+    // <exe>/../lib/locforge/plugins is the build tree's plugin folder; an
+    // install may use a multiarch libdir (lib/x86_64-linux-gnu on Debian).
     const fs::path exe_dir = ExecutableDir();
-    if (!exe_dir.empty()) candidates.push_back(exe_dir / ".." / "lib" / "locforge" / "plugins");
+    if (!exe_dir.empty()) {
+      candidates.push_back(exe_dir / ".." / "lib" / "locforge" / "plugins");
+      candidates.push_back(exe_dir / ".." / LOCFORGE_INSTALL_LIBDIR / "locforge" / "plugins");
+    }
   }
   if (const char* env = std::getenv("LOCFORGE_PLUGIN_PATH"); env && *env) {
     std::string s = env;
