@@ -11,7 +11,7 @@ fi
 clangc=${clangxx%++}
 cmake -S "$src" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER="$clangc" -DCMAKE_CXX_COMPILER="$clangxx" \
-  -DLOCFORGE_BUILD_FUZZERS=ON -DLOCFORGE_BUILD_BENCHMARKS=OFF \
+  -DLOCFORGE_BUILD_FUZZERS=ON -DLOCFORGE_BUILD_TESTS=OFF -DLOCFORGE_BUILD_BENCHMARKS=OFF \
   -DLOCFORGE_SHARED_DIR="$shared" -DLOCFORGE_FUZZ_SECONDS="${LOCFORGE_FUZZ_SECONDS:-30}" >/dev/null
 cmake --build "$build" --target kapture_text_fuzz -j2
 cd "$build"
