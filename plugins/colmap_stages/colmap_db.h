@@ -1,0 +1,43 @@
+// Filling a COLMAP 3.8 database from kapture artifacts (cameras, images,
+// keypoints, matches stored as verified two-view geometries), shared by the
+// triangulator and the registrator stages.
+#ifndef LOCFORGE_PLUGINS_COLMAP_STAGES_COLMAP_DB_H_
+#define LOCFORGE_PLUGINS_COLMAP_STAGES_COLMAP_DB_H_
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "locforge/colmap/database.h"
+#include "locforge/kapture/kapture.h"
+
+namespace locforge::colmap_stages {
+
+// The one keypoints type of a features artifact, or `wanted` when given.
+std::string KeypointsType(const kapture::Kapture& features, const std::string& wanted);
+
+struct DbImages {
+  std::map<std::string, colmap::ImageId> id_of;           // image name -> image_id
+  std::map<std::string, colmap::CameraId> camera_of;      // sensor id -> camera_id
+  std::map<colmap::ImageId, int64_t> num_keypoints;
+};
+
+// Adds one camera per camera sensor used by records_camera, and one image
+// (with its keypoints x, y) per record. Returns the ids given.
+DbImages AddImages(const kapture::Kapture& dataset, const kapture::Kapture& features,
+                   const std::string& keypoints_type, colmap::DatabaseWriter* writer);
+
+// Adds matches (and the same as verified two-view geometries) for every pair
+// of the matches artifact whose two images are in `ids`; `only_with` (when
+// not empty) keeps the pairs with one image in it. Returns the pair count.
+int64_t AddMatches(const kapture::Kapture& matches, const std::string& keypoints_type,
+                   const std::map<std::string, colmap::ImageId>& ids,
+                   const std::map<std::string, colmap::ImageId>& only_with,
+                   colmap::DatabaseWriter* writer);
+
+// "--Mapper.NAME VALUE" pairs.
+void AddMapperOption(std::vector<std::string>* args, const std::string& name, double value);
+
+}  // namespace locforge::colmap_stages
+
+#endif  // LOCFORGE_PLUGINS_COLMAP_STAGES_COLMAP_DB_H_

@@ -1,0 +1,66 @@
+// Localization scoring as in the paper (section 4): position error of camera
+// centres, geodesic rotation error, recall at (position, angle) thresholds
+// with <= bounds, unlocalized queries counted as failures; tables as
+// Markdown/CSV/LaTeX and a recall curve as SVG.
+#ifndef LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
+#define LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "locforge/pose.h"
+
+namespace locforge::evaluation {
+
+struct QueryError {
+  std::string image;
+  std::string device;
+  std::string group;  // camera group label ("" when no groups)
+  std::string split;  // split label ("" when no splits)
+  bool localized = false;
+  double position_m = 0;     // |C_est - C_gt|, when localized
+  double rotation_deg = 0;   // geodesic angle, when localized
+};
+
+// Errors of an estimated world-to-camera pose against the ground truth one.
+QueryError ComputeError(const Pose& ground_truth, const std::optional<Pose>& estimate);
+
+struct Threshold {
+  double position_m = 0;
+  double rotation_deg = 0;
+};
+
+// Fraction (0..1) of `errors` localized with position <= t.position_m and
+// rotation <= t.rotation_deg; unlocalized ones count as failures. 0 when empty.
+double Recall(const std::vector<QueryError>& errors, const Threshold& t);
+
+// Median of the localized errors (NaN when none).
+double MedianPosition(const std::vector<QueryError>& errors);
+double MedianRotation(const std::vector<QueryError>& errors);
+
+// A plain table: header + rows of already formatted cells.
+struct Table {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+};
+std::string ToMarkdown(const Table& table);
+std::string ToCsv(const Table& table);    // RFC 4180 quoting when needed
+std::string ToLatex(const Table& table);  // tabular, special characters escaped
+// Parses ToCsv's output back (quoted fields, doubled quotes).
+Table FromCsv(const std::string& text, const std::string& file_name);
+
+struct CurveSeries {
+  std::string label;
+  std::vector<double> x, y;
+};
+// A line plot as standalone SVG (axes, ticks, legend).
+std::string SvgLinePlot(const std::vector<CurveSeries>& series, const std::string& x_label,
+                        const std::string& y_label, double x_max, double y_max);
+
+// Percentage with one decimal ("62.5").
+std::string Percent(double fraction);
+
+}  // namespace locforge::evaluation
+
+#endif  // LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
