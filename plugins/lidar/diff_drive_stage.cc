@@ -1,0 +1,31 @@
+// odometry/diff_drive: the wheel odometry as a kapture trajectory of the rig.
+#include <cmath>
+
+#include "locforge/kapture/io.h"
+#include "locforge/kapture/kapture.h"
+#include "stages.h"
+
+namespace locforge::lidar {
+
+void DiffDrive::Run(RunContext& ctx) {
+  const DiffDriveOptions& o = options();
+  const WheelOdometry odometry = WheelOdometry::FromKapture(o.dataset, o.Wheels());
+  kapture::Kapture k(o.dataset);
+  kapture::RecordsReader<kapture::GenericRecord> reader(
+      fs::path(o.dataset) / kapture::layout::RecordsFile("wheel_encoder"));
+  kapture::Trajectories trajectories;
+  kapture::GenericRecord r;
+  double next = -1e300;
+  const double step = 1e6 / o.rate_hz;  // kapture timestamps in microseconds
+  while (reader.Next(&r)) {
+    const double t = static_cast<double>(r.timestamp);
+    if (t < next) continue;
+    next = t + step;
+    trajectories.Set(r.timestamp, "rig", odometry.PlatformPose(t).Inverse());
+  }
+  kapture::WriteTrajectories(ctx.output_dir() / kapture::layout::kTrajectories, trajectories);
+  ctx.Info("diff_drive: " + std::to_string(trajectories.size()) + " poses over " +
+           std::to_string(odometry.num_segments()) + " segments");
+}
+
+}  // namespace locforge::lidar

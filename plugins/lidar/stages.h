@@ -1,0 +1,160 @@
+// The LiDAR stages of the ground-truth pipeline (paper section 3.1). Declared
+// here, defined one per file, registered in plugin.cc.
+#ifndef LOCFORGE_PLUGINS_LIDAR_STAGES_H_
+#define LOCFORGE_PLUGINS_LIDAR_STAGES_H_
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "locforge/plugin.h"
+#include "wheel_odometry.h"
+
+namespace locforge::lidar {
+
+// Wheel parameters shared by the stages: 0 keeps the sensors.txt value.
+#define LOCFORGE_LIDAR_WHEEL_PARAMS(O)                                                        \
+  s.Add("wheel_radius", &O::wheel_radius, "Wheel radius (m); 0: from sensors.txt").Min(0);  \
+  s.Add("wheel_axle", &O::wheel_axle, "Axle length (m); 0: from sensors.txt").Min(0);       \
+  s.Add("pulses_per_rev", &O::pulses_per_rev, "Encoder pulses per revolution; 0: from sensors.txt").Min(0)
+
+// ---- odometry/diff_drive ------------------------------------------------------
+
+struct DiffDriveOptions {
+  std::string dataset;       // kapture with sensors/records_wheel_encoder.txt
+  double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
+  double rate_hz = 10;       // Output poses per second.
+  static void Declare(ParamSchema<DiffDriveOptions>& s) {
+    s.Add("dataset", &DiffDriveOptions::dataset, "Kapture recording with wheel encoder records")
+        .Path().Required();
+    LOCFORGE_LIDAR_WHEEL_PARAMS(DiffDriveOptions);
+    s.Add("rate_hz", &DiffDriveOptions::rate_hz, "Output platform poses per second").Range(0.1, 1000);
+  }
+  WheelParams Wheels() const { return {wheel_radius, wheel_axle, pulses_per_rev}; }
+};
+
+class DiffDrive : public Stage<DiffDriveOptions> {
+ public:
+  static StageMeta Meta() {
+    return {"odometry", "diff_drive",
+            "Differential-drive wheel odometry from encoder ticks (platform trajectory, device rig)",
+            {},
+            {{"trajectories", "kapture.trajectories", "T_rig_odom per segment, at rate_hz"}}};
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
+
+// ---- lidar/preprocess ----------------------------------------------------------
+
+struct PreprocessOptions {
+  std::string dataset;
+  std::string reference_lidar;  // "" : the first lidar of sensors.txt
+  double voxel = 0.1;           // m; 0 disables downsampling
+  double min_range = 0.5, max_range = 60;
+  // Self-hit box in the platform frame: xmin ymin zmin xmax ymax zmax.
+  std::vector<double> self_box = {-0.6, -0.45, -0.2, 0.6, 0.45, 2.3};
+  double max_pair_dt = 0.06;    // s between the merged scans of two LiDARs
+  bool undistort = true;
+  double seconds_per_unit = 1e-6;
+  double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
+  static void Declare(ParamSchema<PreprocessOptions>& s) {
+    s.Add("dataset", &PreprocessOptions::dataset, "Kapture recording (LiDAR + wheel records)")
+        .Path().Required();
+    s.Add("reference_lidar", &PreprocessOptions::reference_lidar,
+          "LiDAR whose scan times are the reference; empty: the first lidar of sensors.txt");
+    s.Add("voxel", &PreprocessOptions::voxel, "Voxel size of the downsampling (m); 0: none").Range(0, 10);
+    s.Add("min_range", &PreprocessOptions::min_range, "Closer returns are dropped (m)").Min(0);
+    s.Add("max_range", &PreprocessOptions::max_range, "Farther returns are dropped (m)").Min(0);
+    s.Add("self_box", &PreprocessOptions::self_box,
+          "Platform box (xmin ymin zmin xmax ymax zmax, platform frame): returns inside are self hits");
+    s.Add("max_pair_dt", &PreprocessOptions::max_pair_dt,
+          "Largest time between the scans of two LiDARs merged into one (s)").Range(0, 10);
+    s.Add("undistort", &PreprocessOptions::undistort, "Motion-compensate every point (paper eq. 1)");
+    s.Add("seconds_per_unit", &PreprocessOptions::seconds_per_unit,
+          "Duration of one timestamp unit (1e-6: microseconds)").Range(1e-12, 1);
+    LOCFORGE_LIDAR_WHEEL_PARAMS(PreprocessOptions);
+  }
+  bool Check(std::string* why) const;
+  WheelParams Wheels() const { return {wheel_radius, wheel_axle, pulses_per_rev}; }
+};
+
+class Preprocess : public PerItemStage<PreprocessOptions> {
+ public:
+  static StageMeta Meta() {
+    return {"lidar", "preprocess",
+            "LiDAR scans into the platform frame, undistorted by odometry, merged, filtered, downsampled",
+            {},
+            {{"scans", "kapture.dataset",
+              "records_lidar.txt of device 'scan' (platform frame) + one PCD per reference scan"}}};
+  }
+  using PerItemStage::PerItemStage;
+  std::vector<std::string> ListItems(RunContext& ctx) override;
+  void ProcessItem(RunContext& ctx, const std::string& item) override;
+  void Finalize(RunContext& ctx) override;
+
+  struct Source {
+    std::string path;     // under records_data
+    std::string lidar;
+    Timestamp timestamp;
+  };
+
+ private:
+  void Load();
+  std::mutex mutex_;
+  bool loaded_ = false;
+  std::unique_ptr<WheelOdometry> odometry_;
+  std::map<std::string, Pose> T_platform_lidar_;
+  std::map<std::string, std::vector<Source>> items_;  // reference path -> scans merged
+};
+
+// ---- slam/pose_graph -------------------------------------------------------------
+
+struct PoseGraphSlamOptions {
+  std::string dataset;
+  std::string registration = "registration/gicp";  // back-end stage id
+  std::vector<std::string> registration_params;    // "key=value" given to the back-end
+  double keyframe_distance = 0.5;   // m travelled (odometry) between keyframes
+  double keyframe_angle = 10;       // deg turned between keyframes
+  double min_overlap = 0.5;         // inlier fraction accepted for sequential edges
+  double loop_radius = 4;           // m between estimated positions of loop candidates
+  double loop_min_travel = 8;       // m travelled since a same-sequence candidate
+  double loop_rough_voxel = 0.5;    // m, clouds of the rough check
+  double loop_rough_overlap = 0.5;  // inlier fraction of the rough check
+  double loop_rough_error = 0.3;    // largest mean residual of the rough check (m)
+  double loop_overlap = 0.6;        // inlier fraction of the precise check
+  int loop_stride = 2;              // test loops from every n-th keyframe
+  std::string loss = "cauchy";      // robust loss of loop edges
+  double loss_scale = 1.0;          // in whitened residual units
+  double sigma_translation = 0.01;  // m, registration edges
+  double sigma_rotation = 0.1;      // deg, registration edges
+  int rounds = 3;                   // loop search + optimisation rounds
+  double map_voxel = 0.05;          // m, accumulated map
+  // Manual initial-pose corrections: per sequence "seq x y yaw_deg" entries.
+  std::vector<std::string> initial_poses;
+  double seconds_per_unit = 1e-6;
+  double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
+  static void Declare(ParamSchema<PoseGraphSlamOptions>& s);
+  bool Check(std::string* why) const;
+  WheelParams Wheels() const { return {wheel_radius, wheel_axle, pulses_per_rev}; }
+};
+
+class PoseGraphSlam : public Stage<PoseGraphSlamOptions> {
+ public:
+  static StageMeta Meta() {
+    return {"slam", "pose_graph",
+            "Pose-graph LiDAR SLAM: registration edges, coarse-to-fine loop closures, Ceres, sequences merged",
+            {{"scans", "kapture.dataset", "Undistorted platform-frame scans (lidar/preprocess)"}},
+            {{"trajectories", "kapture.trajectories",
+              "sensors/trajectories.txt: rig at every scan, cameras at every image; map.pcd/ply, "
+              "pose_graph.g2o, trajectories.svg, slam.json"}}};
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
+
+}  // namespace locforge::lidar
+
+#endif  // LOCFORGE_PLUGINS_LIDAR_STAGES_H_
