@@ -1,0 +1,94 @@
+// Absolute pose from 2D-3D correspondences: P3P (Grunert's solution as
+// reviewed by Haralick et al. 1994), EPnP (Lepetit et al. 2009), both inside
+// LO-RANSAC, and a Cauchy-robust Ceres refinement.
+//
+// Observations are bearing vectors on the normalised image plane (z = 1) of a
+// camera mounted on a rig: T_camera_rig maps rig to camera. A single camera is
+// a rig with T_camera_rig = identity, so every solver estimates T_rig_world.
+// Pixel errors are measured as focal * (normalised error), which keeps the
+// refinement independent of the camera model (camera.h Unproject removes the
+// distortion once, up front).
+#ifndef LOCFORGE_PLUGINS_LOCALIZATION_ABSOLUTE_POSE_H_
+#define LOCFORGE_PLUGINS_LOCALIZATION_ABSOLUTE_POSE_H_
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "locforge/pose.h"
+
+namespace locforge::localization {
+
+struct Correspondence {
+  Eigen::Vector2d normalized = Eigen::Vector2d::Zero();  // undistorted, z = 1 plane
+  Eigen::Vector3d world = Eigen::Vector3d::Zero();
+  int camera = 0;  // index into the rig's cameras
+};
+
+struct RigCamera {
+  Pose camera_from_rig;  // T_camera_rig
+  double focal = 1;      // pixels per normalised unit (error scale)
+};
+
+// All poses of the minimal problem (up to 4), as T_camera_world. Needs three
+// non-collinear points; returns none on degenerate input.
+std::vector<Pose> SolveP3P(const std::vector<Eigen::Vector3d>& bearings,
+                           const std::vector<Eigen::Vector3d>& points);
+
+// EPnP on n >= 4 points of one camera (normalised coordinates); exact on
+// noise-free non-degenerate data with n >= 6. Returns false when degenerate.
+bool SolveEPnP(const std::vector<Eigen::Vector2d>& normalized,
+               const std::vector<Eigen::Vector3d>& points, Pose* camera_from_world);
+
+// Squared reprojection error in pixels of one correspondence (infinite when
+// the point is behind the camera).
+double SquaredReprojectionError(const Pose& rig_from_world, const RigCamera& camera,
+                                const Correspondence& c);
+
+struct RefineOptions {
+  double cauchy_scale_px = 1.0;  // Cauchy loss scale, pixels
+  int max_iterations = 50;
+  bool Check(std::string* why) const;
+};
+
+// Minimises the Cauchy-robustified reprojection error over T_rig_world
+// (intrinsics and rig fixed). Returns false when Ceres reports no usable
+// solution (the pose is left unchanged then).
+bool RefinePose(const std::vector<Correspondence>& correspondences,
+                const std::vector<RigCamera>& cameras, const RefineOptions& options,
+                Pose* rig_from_world);
+
+struct RansacOptions {
+  double max_error_px = 12.0;     // inlier threshold, pixels
+  double confidence = 0.9999;     // stop when this sure of the best model
+  int min_iterations = 100;
+  int max_iterations = 10000;
+  int min_inliers = 10;           // fewer -> failure
+  double min_inlier_ratio = 0.0;  // below -> failure
+  uint64_t seed = 0;              // deterministic sampling
+  RefineOptions refine;
+  bool Check(std::string* why) const;
+};
+
+struct AbsolutePoseResult {
+  bool success = false;
+  std::string failure;  // why, when !success
+  Pose rig_from_world;
+  std::vector<char> inlier_mask;
+  int num_inliers = 0;
+  int iterations = 0;
+  double mean_inlier_error_px = 0;
+};
+
+// LO-RANSAC: P3P on minimal samples drawn from one camera, scored over all
+// correspondences (truncated squared error, MSAC); every new best model is
+// locally optimised (EPnP + Ceres on its inliers, repeated while the inliers
+// grow); the final model is refined on all its inliers.
+AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& correspondences,
+                                        const std::vector<RigCamera>& cameras,
+                                        const RansacOptions& options);
+
+}  // namespace locforge::localization
+
+#endif  // LOCFORGE_PLUGINS_LOCALIZATION_ABSOLUTE_POSE_H_
