@@ -1,0 +1,85 @@
+#include "factor.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace locforge::gicp {
+
+namespace {
+constexpr int kBlocks = 64;  // fixed summation blocks: same sums for any thread count
+
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+}  // namespace
+
+double RobustWeight(RobustKernel kernel, double width, double e) {
+  switch (kernel) {
+    case RobustKernel::kHuber: {
+      const double s = std::sqrt(e);
+      return s <= width ? 1.0 : width / s;
+    }
+    case RobustKernel::kCauchy:
+      return 1.0 / (1.0 + e / (width * width));
+    default:
+      return 1.0;
+  }
+}
+
+double RobustCost(RobustKernel kernel, double width, double e) {
+  switch (kernel) {
+    case RobustKernel::kHuber: {
+      const double s = std::sqrt(e);
+      return s <= width ? e : 2 * width * s - width * width;
+    }
+    case RobustKernel::kCauchy:
+      return width * width * std::log1p(e / (width * width));
+    default:
+      return e;
+  }
+}
+
+LinearSystem Linearize(const GicpInputs& in, const Eigen::Isometry3d& T, const FactorOptions& o,
+                       int threads) {
+  const Points& source = *in.source;
+  const int64_t n = static_cast<int64_t>(source.size());
+  const double max_sq = o.max_correspondence_distance * o.max_correspondence_distance;
+  const Eigen::Matrix3d R = T.linear();
+  std::vector<LinearSystem> blocks(kBlocks);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
+  for (int blk = 0; blk < kBlocks; ++blk) {
+    LinearSystem& sys = blocks[blk];
+    const int64_t begin = n * blk / kBlocks, end = n * (blk + 1) / kBlocks;
+    for (int64_t i = begin; i < end; ++i) {
+      const Eigen::Vector3d p = T * source[i];
+      int j;
+      double d2;
+      if (!in.target_tree->Nearest(p, max_sq, &j, &d2)) continue;  // rejector
+      // Segal et al. eq. 2: combined covariance of the pair in the target frame.
+      const Eigen::Matrix3d C = (*in.target_cov)[j] + R * (*in.source_cov)[i] * R.transpose();
+      const Eigen::Matrix3d M = C.inverse();
+      const Eigen::Vector3d r = (*in.target)[j] - p;
+      const double e = r.dot(M * r);
+      const double w = RobustWeight(o.kernel, o.kernel_width, e);
+      Eigen::Matrix<double, 3, 6> J;
+      J << Skew(p), -Eigen::Matrix3d::Identity();
+      const Eigen::Matrix<double, 6, 3> JtM = J.transpose() * M;
+      sys.H.noalias() += w * JtM * J;
+      sys.b.noalias() += w * JtM * r;
+      sys.cost += RobustCost(o.kernel, o.kernel_width, e);
+      ++sys.inliers;
+    }
+  }
+  LinearSystem total;
+  for (const LinearSystem& s : blocks) {
+    total.H += s.H;
+    total.b += s.b;
+    total.cost += s.cost;
+    total.inliers += s.inliers;
+  }
+  return total;
+}
+
+}  // namespace locforge::gicp

@@ -1,0 +1,33 @@
+// Preprocessing of our GICP: float cloud -> double points, voxel-grid
+// downsampling, and per-point covariances from k nearest neighbours.
+#ifndef LOCFORGE_PLUGINS_REGISTRATION_GICP_PREPROCESS_H_
+#define LOCFORGE_PLUGINS_REGISTRATION_GICP_PREPROCESS_H_
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "kdtree.h"
+#include "locforge/registration.h"
+
+namespace locforge::gicp {
+
+using Covariances = std::vector<Eigen::Matrix3d>;
+
+Points ToPoints(const PointCloud& cloud);
+
+// One point per occupied voxel of edge `voxel_size` (the centroid of its
+// points), in order of first occurrence, so the output is deterministic.
+// voxel_size <= 0 returns the input.
+Points VoxelDownsample(const Points& points, double voxel_size);
+
+// Covariance of each point's k-neighbourhood, regularised to a plane
+// (Segal et al. 2009, GICP, Sec. III-B "plane-to-plane"): the eigenvalues
+// become (1, 1, epsilon), so the Mahalanobis cost penalises distance along
+// the local normal 1/epsilon times more than within the plane. Points with
+// fewer than 3 neighbours get epsilon-free identity (point-to-point).
+Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k, double epsilon,
+                                int threads);
+
+}  // namespace locforge::gicp
+
+#endif  // LOCFORGE_PLUGINS_REGISTRATION_GICP_PREPROCESS_H_

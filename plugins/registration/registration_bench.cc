@@ -1,0 +1,110 @@
+// Time of one registration of the small_gicp pair (voxel 0.25 m, from the
+// identity) per back-end and thread count, each loaded as the host loads it.
+// The downsampling, KD-trees and covariances are part of the timed call.
+// After the runs, prints each time as a ratio to PCL GICP at 1 thread.
+//   locforge_registration_bench --benchmark_repetitions=5
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <map>
+#include <memory>
+
+#include "locforge/pointcloud_io.h"
+#include "locforge/registration.h"
+#include "locforge/runtime/registry.h"
+
+namespace {
+
+using namespace locforge;
+
+struct Pair {
+  PointCloud source, target;
+};
+
+const Pair& Data() {
+  static const Pair p = [] {
+    const std::filesystem::path dir = std::filesystem::path(LF_SHARED_DIR) / "data/registration/small_gicp_pair";
+    return Pair{ReadPly(dir / "source.ply"), ReadPly(dir / "target.ply")};
+  }();
+  return p;
+}
+
+runtime::Registry& Plugins() {
+  static runtime::Registry* r = [] {
+    auto* reg = new runtime::Registry;
+    for (const char* f : {LF_GICP_PLUGIN, LF_PCL_GICP_PLUGIN, LF_ICP_PLANE_PLUGIN}) reg->LoadFile(f);
+    return reg;
+  }();
+  return *r;
+}
+
+std::map<std::string, double>& Medians() {
+  static std::map<std::string, double> m;
+  return m;
+}
+
+void Align(benchmark::State& state, const char* id) {
+  const int threads = static_cast<int>(state.range(0));
+  const runtime::StageEntry* stage = Plugins().Find(id);
+  if (!stage) {
+    state.SkipWithError("plugin not loaded");
+    return;
+  }
+  runtime::StageInstance inst(*stage, runtime::CheckStageParams(
+      *stage, {{"voxel_size", "0.25"}, {"max_correspondence_distance", "1.0"}}));
+  const RegistrationBackend b(static_cast<const LfRegistrationInterface*>(inst.Component()),
+                              inst.raw(), id, nullptr);
+  const Pair& d = Data();
+  RegistrationResult r;
+  for (auto _ : state) {
+    r = b.Align(d.source, d.target, Pose(), threads);
+    benchmark::DoNotOptimize(r);
+  }
+  state.counters["iterations"] = r.iterations;
+  state.counters["overlap"] = r.inlier_fraction;
+}
+
+BENCHMARK_CAPTURE(Align, pcl_gicp, "registration/pcl_gicp")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(Align, gicp, "registration/gicp")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(Align, icp_plane, "registration/icp_plane")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Console output plus a table of ratios against pcl_gicp at 1 thread
+// (medians when repeated, else means).
+class RatioReporter : public benchmark::ConsoleReporter {
+ public:
+  void ReportRuns(const std::vector<Run>& runs) override {
+    ConsoleReporter::ReportRuns(runs);
+    for (const Run& r : runs) {
+      const bool aggregate = r.run_type == Run::RT_Aggregate;
+      if (aggregate && r.aggregate_name != "median") continue;
+      if (!aggregate && has_aggregates_) continue;
+      std::string name = r.benchmark_name();
+      const auto cut = name.find("_median");
+      if (cut != std::string::npos) name = name.substr(0, cut);
+      times_[name] = r.GetAdjustedRealTime();
+    }
+  }
+  void Finalize() override {
+    ConsoleReporter::Finalize();
+    const auto base = times_.find("Align/pcl_gicp/1/real_time");
+    if (base == times_.end()) return;
+    std::printf("\n%-32s %12s %10s\n", "benchmark", "ms", "x pcl_gicp/1");
+    for (const auto& [name, ms] : times_)
+      std::printf("%-32s %12.1f %10.2f\n", name.c_str(), ms, ms / base->second);
+  }
+  bool has_aggregates_ = false;
+
+ private:
+  std::map<std::string, double> times_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  RatioReporter reporter;
+  for (int i = 1; i < argc; ++i)
+    if (std::string(argv[i]).rfind("--benchmark_repetitions", 0) == 0) reporter.has_aggregates_ = true;
+  benchmark::RunSpecifiedBenchmarks(&reporter);
+  return 0;
+}
