@@ -1,0 +1,161 @@
+#include "matching.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+
+#include "locforge/error.h"
+
+namespace locforge::matching {
+
+DescriptorMatrix NormalisedDescriptors(const kapture::FeatureArray& d) {
+  DescriptorMatrix m(d.rows, d.dsize);
+  for (int64_t r = 0; r < d.rows; ++r)
+    for (int64_t c = 0; c < d.dsize; ++c) m(r, c) = static_cast<float>(d.At(r, c));
+  for (int64_t r = 0; r < d.rows; ++r) {
+    const float n = m.row(r).norm();
+    if (n > 0) m.row(r) /= n;
+  }
+  return m;
+}
+
+std::vector<kapture::Match> MatchDescriptors(const DescriptorMatrix& a, const DescriptorMatrix& b,
+                                             const NnOptions& o) {
+  std::vector<kapture::Match> out;
+  const int64_t n = a.rows(), m = b.rows();
+  if (n == 0 || m == 0) return out;
+  if (a.cols() != b.cols())
+    throw InputError("descriptor sizes differ: " + std::to_string(a.cols()) + " vs " +
+                     std::to_string(b.cols()));
+  constexpr float kNone = -std::numeric_limits<float>::infinity();
+  std::vector<int> best(n, -1);
+  std::vector<float> best_sim(n, kNone), second_sim(n, kNone);
+  std::vector<int> col_best(m, -1);
+  std::vector<float> col_best_sim(m, kNone);
+  constexpr int64_t kBlock = 1024;
+  Eigen::MatrixXf sim;
+  for (int64_t start = 0; start < n; start += kBlock) {
+    const int64_t rows = std::min(kBlock, n - start);
+    sim.noalias() = a.middleRows(start, rows) * b.transpose();
+    for (int64_t r = 0; r < rows; ++r) {
+      const int64_t i = start + r;
+      for (int64_t j = 0; j < m; ++j) {
+        const float s = sim(r, j);
+        if (s > best_sim[i]) {
+          second_sim[i] = best_sim[i];
+          best_sim[i] = s;
+          best[i] = static_cast<int>(j);
+        } else if (s > second_sim[i]) {
+          second_sim[i] = s;
+        }
+        if (s > col_best_sim[j]) {
+          col_best_sim[j] = s;
+          col_best[j] = static_cast<int>(i);
+        }
+      }
+    }
+  }
+  auto distance = [](float s) { return std::sqrt(std::max(0.0, 2.0 - 2.0 * s)); };
+  for (int64_t i = 0; i < n; ++i) {
+    const int j = best[i];
+    if (j < 0) continue;
+    if (o.cross_check && col_best[j] != i) continue;
+    const double d1 = distance(best_sim[i]);
+    if (d1 > o.max_distance) continue;
+    if (o.ratio < 1.0 && m > 1 && !(d1 < o.ratio * distance(second_sim[i]))) continue;
+    out.push_back({static_cast<double>(i), static_cast<double>(j), best_sim[i]});
+  }
+  return out;
+}
+
+namespace {
+
+int UsacMethod(const std::string& method) {
+  if (method == "magsac") return cv::USAC_MAGSAC;
+  if (method == "usac") return cv::USAC_DEFAULT;
+  throw ParamError("parameter 'method': unknown '" + method + "'");
+}
+
+Eigen::Matrix3d ToEigen(const cv::Mat& m) {
+  Eigen::Matrix3d e;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) e(r, c) = m.at<double>(r, c);
+  return e;
+}
+
+Eigen::Matrix3d Skew(const Eigen::Vector3d& t) {
+  Eigen::Matrix3d s;
+  s << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  return s;
+}
+
+}  // namespace
+
+TwoViewResult VerifyTwoView(const std::vector<Eigen::Vector2d>& p1,
+                            const std::vector<Eigen::Vector2d>& p2, const Camera* c1,
+                            const Camera* c2, const TwoViewOptions& o) {
+  if (p1.size() != p2.size()) throw Error("VerifyTwoView: point counts differ");
+  TwoViewResult result;
+  const bool essential = c1 && c2;
+  const size_t min_points = essential ? 5 : 8;
+  if (p1.size() < min_points) return result;
+  std::vector<cv::Point2d> a, b;
+  a.reserve(p1.size());
+  b.reserve(p2.size());
+  for (size_t i = 0; i < p1.size(); ++i) {
+    if (essential) {
+      const Eigen::Vector3d r1 = c1->Unproject(p1[i]), r2 = c2->Unproject(p2[i]);
+      a.emplace_back(r1.x(), r1.y());
+      b.emplace_back(r2.x(), r2.y());
+    } else {
+      a.emplace_back(p1[i].x(), p1[i].y());
+      b.emplace_back(p2[i].x(), p2[i].y());
+    }
+  }
+  cv::Mat mask, model;
+  if (essential) {
+    const double focal = 0.25 * (c1->fx() + c1->fy() + c2->fx() + c2->fy());
+    model = cv::findEssentialMat(a, b, cv::Mat::eye(3, 3, CV_64F), UsacMethod(o.method),
+                                 o.confidence, o.max_error_px / focal, o.max_iterations, mask);
+  } else {
+    model = cv::findFundamentalMat(a, b, UsacMethod(o.method), o.max_error_px, o.confidence,
+                                   o.max_iterations, mask);
+  }
+  if (model.rows != 3 || model.cols != 3 || mask.empty()) return result;  // degenerate
+  result.model = essential ? "essential" : "fundamental";
+  result.matrix = ToEigen(model);
+  for (int i = 0; i < static_cast<int>(p1.size()); ++i)
+    if (mask.at<uchar>(i)) result.inliers.push_back(i);
+  return result;
+}
+
+std::vector<double> EpipolarErrorsPx(const std::vector<Eigen::Vector2d>& p1,
+                                     const std::vector<Eigen::Vector2d>& p2, const Camera& c1,
+                                     const Camera& c2, const Pose& T1_world, const Pose& T2_world) {
+  const Pose T21 = T2_world * T1_world.Inverse();  // x2 = R x1 + t
+  const Eigen::Matrix3d R = T21.R();
+  const Eigen::Vector3d t = T21.t;
+  const double focal = 0.25 * (c1.fx() + c1.fy() + c2.fx() + c2.fy());
+  const double scene_scale = std::max(1e-9, t.norm());
+  const bool no_baseline = t.norm() < 1e-6;
+  const Eigen::Matrix3d E = Skew(t / scene_scale) * R;
+  std::vector<double> errors(p1.size());
+  for (size_t i = 0; i < p1.size(); ++i) {
+    const Eigen::Vector3d x1 = c1.Unproject(p1[i]), x2 = c2.Unproject(p2[i]);
+    if (no_baseline) {
+      const Eigen::Vector3d r = R * x1;
+      errors[i] = r.z() > 0 ? focal * (r.hnormalized() - x2.hnormalized()).norm()
+                            : std::numeric_limits<double>::infinity();
+      continue;
+    }
+    const Eigen::Vector3d Ex1 = E * x1, Etx2 = E.transpose() * x2;
+    const double num = x2.dot(Ex1);
+    const double den = Ex1.head<2>().squaredNorm() + Etx2.head<2>().squaredNorm();
+    errors[i] = den > 0 ? focal * std::abs(num) / std::sqrt(den) : std::numeric_limits<double>::infinity();
+  }
+  return errors;
+}
+
+}  // namespace locforge::matching
