@@ -108,6 +108,18 @@ TEST(RegistrationPlugins, RecoverAKnownTransformOfASyntheticScene) {
   }
 }
 
+TEST(RegistrationPlugins, GicpLevenbergMarquardtFromAFarGuess) {
+  const PointCloud target = Scene(8000, 11);
+  const Pose gt = MakePose(0.1, -0.05, 0.2, 0.6, -0.4, 0.1);
+  const PointCloud source = Transformed(Scene(8000, 12), gt.Inverse(), 0.005, 13);
+  const auto b = Make("registration/gicp", {{"optimizer", "levenberg_marquardt"},
+                                            {"max_correspondence_distance", "2.0"}});
+  const RegistrationResult r = b.Align(source, target, Pose(), 2);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT(RotErrDeg(r.T_target_source, gt), 0.05);
+  EXPECT_LT(TransErr(r.T_target_source, gt), 0.005);
+}
+
 TEST(RegistrationPlugins, GicpRobustKernelsResistOutliers) {
   const PointCloud target = Scene(10000, 4);
   const Pose gt = MakePose(0.02, 0.01, -0.05, -0.2, 0.15, 0.03);
