@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "colmap_db.h"
+#include "vocab_tree.h"
 #include "locforge/colmap/model.h"
 #include "locforge/colmap/run.h"
 #include "locforge/kapture/kapture.h"
@@ -94,6 +95,15 @@ struct RegistratorOptions {
   }
 };
 
+// COLMAP reads the images only for point colours: the dataset's records_data
+// when present, else an empty folder (points come out grey).
+fs::path ImagePath(const fs::path& dataset, const fs::path& out) {
+  const fs::path images = dataset / kp::layout::kRecordsData;
+  if (fs::is_directory(images)) return images;
+  fs::create_directories(out / "no_images");
+  return out / "no_images";
+}
+
 colmap::RunOptions RunOptionsFor(RunContext& ctx, const std::string& tool, double timeout_s) {
   colmap::RunOptions o;
   o.log_file = ctx.output_dir() / ("colmap_" + tool + ".log");
@@ -164,7 +174,8 @@ class ColmapTriangulator : public Stage<TriangulatorOptions> {
     std::vector<std::string> args = {"point_triangulator", "--database_path", db_path.string(),
                                      "--input_path", (out / "input_model").string(),
                                      "--output_path", (out / "model").string(),
-                                     "--clear_points", "1"};
+                                     "--clear_points", "1", "--image_path",
+                                     ImagePath(ctx.Input("map"), out).string()};
     AddFixedIntrinsics(&args);
     o.Mapper().AddTo(&args);
     const auto run = colmap::RunColmap(args, RunOptionsFor(ctx, "point_triangulator", o.timeout_s));
@@ -318,4 +329,5 @@ LOCFORGE_PLUGIN("colmap_stages", "1.0.0",
                 "COLMAP point_triangulator / image_registrator stages (paper's parameters)",
                 locforge::colmap_stages::ColmapTriangulator,
                 locforge::colmap_stages::ColmapRegistrator,
-                locforge::colmap_stages::KaptureFolder)
+                locforge::colmap_stages::KaptureFolder,
+                locforge::colmap_stages::VocabTreeStage)
