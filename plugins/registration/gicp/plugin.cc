@@ -3,6 +3,7 @@
 // -> factor (correspondence, rejector, Mahalanobis cost, robust kernel)
 // -> optimizer (Gauss-Newton / Levenberg-Marquardt on SE(3)).
 #include <algorithm>
+#include <memory>
 #include <string>
 
 #include "factor.h"
@@ -74,13 +75,29 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
   RegistrationResult Align(const PointCloud& source_cloud, const PointCloud& target_cloud,
                            const Pose& initial, int threads) const override {
     const GicpOptions& o = options();
-    const Points source = VoxelDownsample(ToPoints(source_cloud), o.voxel_size);
-    const Points target = VoxelDownsample(ToPoints(target_cloud), o.voxel_size);
+    // The serial steps (voxel grid, tree build) of the two clouds run side by side.
+    Points source, target;
+#pragma omp parallel sections num_threads(std::min(threads, 2))
+    {
+#pragma omp section
+      source = VoxelDownsample(ToPoints(source_cloud), o.voxel_size);
+#pragma omp section
+      target = VoxelDownsample(ToPoints(target_cloud), o.voxel_size);
+    }
     if (source.size() < 6 || target.size() < 6)
       throw InputError("registration/gicp: clouds need at least 6 points (source " +
                        std::to_string(source.size()) + ", target " +
                        std::to_string(target.size()) + ")");
-    const KdTree source_tree(source), target_tree(target);
+    std::unique_ptr<KdTree> source_tree_ptr, target_tree_ptr;
+#pragma omp parallel sections num_threads(std::min(threads, 2))
+    {
+#pragma omp section
+      source_tree_ptr = std::make_unique<KdTree>(source);
+#pragma omp section
+      target_tree_ptr = std::make_unique<KdTree>(target);
+    }
+    const KdTree& source_tree = *source_tree_ptr;
+    const KdTree& target_tree = *target_tree_ptr;
     const Covariances source_cov =
         EstimateCovariances(source, source_tree, o.k_neighbors, o.covariance_epsilon, threads);
     const Covariances target_cov =
