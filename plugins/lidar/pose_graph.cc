@@ -62,6 +62,20 @@ struct RelativePoseError {
   Matrix6d sqrt_info;
 };
 
+// Planar prior: r = [t_z / sigma_z; (R e_z)_x / sigma_tilt; (R e_z)_y / sigma_tilt].
+struct PlanarPrior {
+  double sigma_z, sigma_tilt;
+  template <typename T>
+  bool operator()(const T* t, const T* q_ptr, T* r) const {
+    Eigen::Map<const Eigen::Quaternion<T>> q(q_ptr);
+    const Eigen::Matrix<T, 3, 1> up = q * Eigen::Matrix<T, 3, 1>(T(0), T(0), T(1));
+    r[0] = t[2] / sigma_z;
+    r[1] = up.x() / sigma_tilt;
+    r[2] = up.y() / sigma_tilt;
+    return true;
+  }
+};
+
 ceres::LossFunction* MakeLoss(const PoseGraphEdge& e, double factor) {
   // Ceres losses take the squared norm; scale given on the norm.
   const double s = e.loss_scale * factor;
@@ -92,6 +106,11 @@ void BuildProblem(const PoseGraph& graph, Parameters* p, ceres::Problem* problem
                               p->q[e.from].coeffs().data(), p->t[e.to].data(),
                               p->q[e.to].coeffs().data());
   }
+  if (graph.planar_sigma_z > 0 && graph.planar_sigma_tilt > 0)
+    for (auto& [id, t] : p->t)
+      problem->AddResidualBlock(new ceres::AutoDiffCostFunction<PlanarPrior, 3, 3, 4>(
+                                    new PlanarPrior{graph.planar_sigma_z, graph.planar_sigma_tilt}),
+                                nullptr, t.data(), p->q[id].coeffs().data());
   for (auto& [id, q] : p->q)
     if (problem->HasParameterBlock(q.coeffs().data()))
       problem->SetManifold(q.coeffs().data(), new ceres::EigenQuaternionManifold);

@@ -33,6 +33,10 @@ struct PoseGraph {
   std::map<int, Pose> nodes;  // id -> T_world_node
   std::vector<PoseGraphEdge> edges;
   std::vector<int> fixed;     // ids held constant (at least one, else the first node)
+  // Planar prior (a wheeled platform on a level floor): every node's height
+  // and tilt (its z axis against the world's) held near those of the world
+  // frame with these stds (m, rad); 0 disables it.
+  double planar_sigma_z = 0, planar_sigma_tilt = 0;
 };
 
 // The information matrix of abi.h's registration results is in (r, t) order;

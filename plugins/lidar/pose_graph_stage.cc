@@ -33,11 +33,20 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
   s.Add("loop_rough_overlap", &O::loop_rough_overlap, "Inlier fraction of the rough check").Range(0, 1);
   s.Add("loop_rough_error", &O::loop_rough_error, "Largest mean residual of the rough check (m)").Min(0);
   s.Add("loop_overlap", &O::loop_overlap, "Inlier fraction of the precise loop check").Range(0, 1);
+  s.Add("loop_yaw_hypotheses", &O::loop_yaw_hypotheses,
+        "Headings tried by the rough check between sequences not yet joined").Range(1, 72);
   s.Add("loop_stride", &O::loop_stride, "Search loops from every n-th keyframe").Range(1, 1000);
   s.Add("loss", &O::loss, "Robust loss of loop edges").Choices({"cauchy", "huber", "none"});
   s.Add("loss_scale", &O::loss_scale, "Robust loss scale (whitened residual units)").Min(1e-6);
   s.Add("sigma_translation", &O::sigma_translation, "Std of registration edges (m)").Min(1e-6);
   s.Add("sigma_rotation", &O::sigma_rotation, "Std of registration edges (deg)").Min(1e-6);
+  s.Add("odometry_sigma", &O::odometry_sigma,
+        "Std of odometry edges per metre driven (m/m); 0: no odometry edges").Min(0);
+  s.Add("odometry_sigma_rotation", &O::odometry_sigma_rotation,
+        "Rotation std of odometry edges per metre driven (deg/m)").Min(1e-6);
+  s.Add("planar", &O::planar, "Level-floor prior: heights and tilts held near the first pose's");
+  s.Add("planar_sigma_z", &O::planar_sigma_z, "Height std of the planar prior (m)").Min(1e-6);
+  s.Add("planar_sigma_tilt", &O::planar_sigma_tilt, "Tilt std of the planar prior (deg)").Min(1e-6);
   s.Add("rounds", &O::rounds, "Loop search + optimisation rounds").Range(1, 20);
   s.Add("map_voxel", &O::map_voxel, "Voxel of the accumulated map (m)").Range(0.005, 10);
   s.Add("initial_poses", &O::initial_poses,
@@ -119,7 +128,9 @@ class Slam {
   RegistrationBackend backend_;
   std::vector<Keyframe> keyframes_;  // sequences in time order, each in time order
   PoseGraph graph_;
-  std::set<std::pair<int, int>> tested_;
+  std::set<std::pair<int, int>> accepted_;  // loop edges added
+  int64_t loop_tests_ = 0;
+  std::set<std::pair<std::string, std::string>> joined_;  // sequences joined by a loop
   int sequential_fallbacks_ = 0;
   std::map<std::string, Pose> start_poses_;
 };
@@ -169,6 +180,10 @@ void Slam::SelectKeyframes(const std::vector<kapture::DataRecord>& scans, const 
   }
   if (keyframes_.empty()) throw InputError(scans_root.string(), 0, "records_lidar", "no scan covered by odometry");
   graph_.fixed = {0};
+  if (o_.planar) {
+    graph_.planar_sigma_z = o_.planar_sigma_z;
+    graph_.planar_sigma_tilt = o_.planar_sigma_tilt * M_PI / 180;
+  }
 }
 
 void Slam::AddSequentialEdges() {
@@ -191,6 +206,15 @@ void Slam::AddSequentialEdges() {
     e.information = ok ? icp_info : odo_info;
     if (!ok) ++sequential_fallbacks_;
     graph_.edges.push_back(e);
+    // Odometry edge beside the registration one: constrains what scans leave
+    // free (along corridors), sigma proportional to the distance driven.
+    if (ok && o_.odometry_sigma > 0) {
+      PoseGraphEdge odo = e;
+      odo.T_from_to = guess;
+      const double d = std::max(odometry_.Distance(a.timestamp, b.timestamp), 0.05);
+      odo.information = DiagonalInformation(o_.odometry_sigma * d, o_.odometry_sigma_rotation * M_PI / 180 * d);
+      graph_.edges.push_back(odo);
+    }
     // Chain the initial estimate along the registered edges.
     graph_.nodes[b.id] = graph_.nodes[a.id] * e.T_from_to;
     ctx_.Progress(i, keyframes_.size(), "sequential edges");
@@ -199,10 +223,20 @@ void Slam::AddSequentialEdges() {
 
 bool Slam::TryLoop(const Keyframe& a, const Keyframe& b) {
   const Pose guess = graph_.nodes[a.id].Inverse() * graph_.nodes[b.id];
-  // Coarse: downsampled clouds, from the current estimate.
-  const RegistrationResult rough = backend_.Align(b.rough, a.rough, guess, ctx_.threads());
-  if (!rough.converged || rough.inlier_fraction < o_.loop_rough_overlap || rough.final_error > o_.loop_rough_error)
-    return false;
+  // Coarse: downsampled clouds, from the current estimate; across sequences
+  // (whose relative heading is unknown until a first loop joins them) from
+  // several headings, keeping the best-overlapping result.
+  const bool join = a.sequence != b.sequence && !joined_.count({a.sequence, b.sequence});
+  const int hypotheses = join ? o_.loop_yaw_hypotheses : 1;
+  RegistrationResult rough;
+  for (int h = 0; h < hypotheses; ++h) {
+    const Pose yaw(Eigen::Quaterniond(Eigen::AngleAxisd(2 * M_PI * h / hypotheses, Eigen::Vector3d::UnitZ())),
+                   Eigen::Vector3d::Zero());
+    const RegistrationResult r = backend_.Align(b.rough, a.rough, guess * yaw, ctx_.threads());
+    if (!r.converged || r.final_error > o_.loop_rough_error) continue;
+    if (!rough.converged || r.inlier_fraction > rough.inlier_fraction) rough = r;
+  }
+  if (!rough.converged || rough.inlier_fraction < o_.loop_rough_overlap) return false;
   if ((rough.T_target_source.t - guess.t).norm() > o_.loop_radius) return false;
   // Fine: full clouds from the rough result.
   const RegistrationResult fine = backend_.Align(b.cloud, a.cloud, rough.T_target_source, ctx_.threads());
@@ -216,6 +250,8 @@ bool Slam::TryLoop(const Keyframe& a, const Keyframe& b) {
   e.loss_scale = o_.loss_scale;
   e.loop = true;
   graph_.edges.push_back(e);
+  joined_.insert({a.sequence, b.sequence});
+  joined_.insert({b.sequence, a.sequence});
   return true;
 }
 
@@ -236,8 +272,13 @@ int Slam::AddLoopEdges() {
       if (d < best.first) best = {d, a.id};
     }
     for (const auto& [seq, best] : nearest) {
-      if (!tested_.insert({best.second, b.id}).second) continue;
-      if (TryLoop(keyframes_[best.second], b)) ++added;
+      // Failed candidates are tried again next round, from better estimates.
+      if (accepted_.count({best.second, b.id})) continue;
+      ++loop_tests_;
+      if (TryLoop(keyframes_[best.second], b)) {
+        accepted_.insert({best.second, b.id});
+        ++added;
+      }
     }
     ctx_.Progress(j, keyframes_.size(), "loop closures");
   }
@@ -358,7 +399,7 @@ void Slam::WriteOutputs(const std::vector<kapture::DataRecord>& scans, const Pos
     << ",\n  \"sequences\": " << sequences.size() << ",\n  \"sequential_edges\": "
     << graph_.edges.size() - loop_edges << ",\n  \"sequential_odometry_fallbacks\": " << sequential_fallbacks_
     << ",\n  \"loop_edges\": " << loop_edges << ",\n  \"cross_sequence_loop_edges\": " << cross
-    << ",\n  \"loop_candidates_tested\": " << tested_.size() << ",\n  \"initial_cost\": " << summary.initial_cost
+    << ",\n  \"loop_candidates_tested\": " << loop_tests_ << ",\n  \"initial_cost\": " << summary.initial_cost
     << ",\n  \"final_cost\": " << summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
     << ",\n  \"map_points\": " << map.size() << ",\n  \"seconds\": " << seconds
     << ",\n  \"scans_per_second\": " << scans.size() / std::max(seconds, 1e-9) << "\n}\n";

@@ -126,10 +126,16 @@ struct PoseGraphSlamOptions {
   double loop_rough_error = 0.3;    // largest mean residual of the rough check (m)
   double loop_overlap = 0.6;        // inlier fraction of the precise check
   int loop_stride = 2;              // test loops from every n-th keyframe
+  int loop_yaw_hypotheses = 12;     // headings tried when joining two sequences
   std::string loss = "cauchy";      // robust loss of loop edges
   double loss_scale = 1.0;          // in whitened residual units
   double sigma_translation = 0.01;  // m, registration edges
   double sigma_rotation = 0.1;      // deg, registration edges
+  double odometry_sigma = 0.02;     // m per m driven, odometry edges (0: none)
+  double odometry_sigma_rotation = 2;  // deg per m driven
+  bool planar = true;               // level-floor prior (wheeled platform)
+  double planar_sigma_z = 0.01;     // m
+  double planar_sigma_tilt = 0.1;   // deg
   int rounds = 3;                   // loop search + optimisation rounds
   double map_voxel = 0.05;          // m, accumulated map
   // Manual initial-pose corrections: per sequence "seq x y yaw_deg" entries.
