@@ -345,6 +345,30 @@ TEST(MatchingStages, MatchAndVerifyTheSampleR2D2Features) {
   fs::remove_all(tmp);
 }
 
+TEST(MatchingPlugin, RunsDeterministically) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
+  const fs::path tmp = locforge::testing::MakeTempDir("matching_det");
+  const Sample s = MakeSample(shared, tmp, 12);
+  runtime::Registry registry;
+  ASSERT_TRUE(testkit::CheckLoads(registry, LOCFORGE_MATCHING_PLUGIN_FILE).ok());
+  const runtime::InputArtifact features{"features", "kapture.local_features", s.features};
+  testkit::DeterminismCase c;
+  c.stage_id = "matches/mutual_nn";
+  c.params = {{"ratio", "0.9"}};
+  c.inputs = {features, {"pairs", "kapture.pairs", s.pairs}};
+  c.threads = 3;
+  EXPECT_TRUE(testkit::CheckDeterminism(registry, c).ok());
+  RunStage(registry, "matches/mutual_nn", {}, c.inputs, tmp / "matches");
+  testkit::DeterminismCase v;
+  v.stage_id = "verify/two_view";
+  v.inputs = {{"matches", "kapture.matches", tmp / "matches"}, features,
+              {"images", "kapture.dataset", shared / "mapping"}, {"query", "kapture.dataset", shared / "query"}};
+  v.threads = 3;
+  const auto report = testkit::CheckDeterminism(registry, v);
+  EXPECT_TRUE(report.ok()) << report.ToString();
+  fs::remove_all(tmp);
+}
+
 TEST(MatchingPlugin, Conforms) {
   const auto report = testkit::CheckPlugin(LOCFORGE_MATCHING_PLUGIN_FILE);
   EXPECT_TRUE(report.ok()) << report.ToString();

@@ -199,7 +199,7 @@ TEST(DenseVlad, SimulatorQueriesRetrieveNearbyMapImages) {
   runtime::Registry registry;
   ASSERT_TRUE(registry.LoadFile(LOCFORGE_RETRIEVAL_PLUGIN_FILE));
   ASSERT_TRUE(registry.LoadFile(sim_plugin));
-  RunStage(registry, "source/simulator", {{"preset", "tiny"}, {"seed", "1"}, {"lidar", "false"}, {"duration_scale", "0.5"}}, {},
+  RunStage(registry, "source/simulator", {{"preset", "tiny"}, {"seed", "1"}, {"lidar", "false"}, {"duration_scale", "0.35"}}, {},
            tmp / "sim");
   const fs::path map = tmp / "sim", queries = tmp / "sim/validation";
   const runtime::InputArtifact map_images{"images", "kapture.dataset", map};
@@ -222,6 +222,28 @@ TEST(DenseVlad, SimulatorQueriesRetrieveNearbyMapImages) {
   std::cout << pairs.size() << " queries: top-1 centre distance median " << d[d.size() / 2] << " m, "
             << 100 * within3 << " % within 3 m\n";
   EXPECT_GT(within3, 0.6);
+  fs::remove_all(tmp);
+}
+
+TEST(RetrievalPlugin, DenseVladRunsDeterministically) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
+  const fs::path tmp = locforge::testing::MakeTempDir("densevlad_det");
+  runtime::Registry registry;
+  ASSERT_TRUE(testkit::CheckLoads(registry, LOCFORGE_RETRIEVAL_PLUGIN_FILE).ok());
+  const runtime::InputArtifact map{"images", "kapture.dataset", shared / "query"};
+  testkit::DeterminismCase c;
+  c.stage_id = "global/densevlad_vocabulary";
+  c.params = {{"clusters", "8"}, {"sample_size", "4000"}, {"max_image_size", "240"}, {"pca_dims", "2"}};
+  c.inputs = {map};
+  c.threads = 3;
+  auto report = testkit::CheckDeterminism(registry, c);
+  EXPECT_TRUE(report.ok()) << report.ToString();
+  RunStage(registry, c.stage_id, c.params, c.inputs, tmp / "voc");
+  c.stage_id = "global/densevlad";
+  c.params = {};
+  c.inputs = {map, {"vocabulary", "densevlad.vocabulary", tmp / "voc"}};
+  report = testkit::CheckDeterminism(registry, c);
+  EXPECT_TRUE(report.ok()) << report.ToString();
   fs::remove_all(tmp);
 }
 
