@@ -212,7 +212,10 @@ void Slam::AddSequentialEdges() {
       PoseGraphEdge odo = e;
       odo.T_from_to = guess;
       const double d = std::max(odometry_.Distance(a.timestamp, b.timestamp), 0.05);
-      odo.information = DiagonalInformation(o_.odometry_sigma * d, o_.odometry_sigma_rotation * M_PI / 180 * d);
+      // Turning in place: wheel-radius and axle errors scale the turned angle (5 % here).
+      const double turned = Eigen::AngleAxisd(guess.q).angle();
+      odo.information = DiagonalInformation(o_.odometry_sigma * d,
+                                            o_.odometry_sigma_rotation * M_PI / 180 * d + 0.05 * turned);
       graph_.edges.push_back(odo);
     }
     // Chain the initial estimate along the registered edges.
