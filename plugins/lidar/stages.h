@@ -161,6 +161,52 @@ class PoseGraphSlam : public Stage<PoseGraphSlamOptions> {
   void Run(RunContext& ctx) override;
 };
 
+// ---- calib/lidar_to_lidar ---------------------------------------------------------
+
+struct LidarToLidarOptions {
+  std::string dataset;
+  std::string reference_lidar;   // "" : the first lidar of sensors.txt
+  std::string lidar;             // calibrated one; "" : the other lidar
+  int scans = 10;                // scans accumulated
+  int iterations = 2;            // undistortion / registration alternations
+  double voxel = 0.1, min_range = 0.5, max_range = 60;
+  std::string registration = "registration/gicp";
+  std::vector<std::string> registration_params;
+  // Start offset applied to rigs.txt (x y z m, roll pitch yaw deg): tests, bad CAD.
+  std::vector<double> initial_offset = {0, 0, 0, 0, 0, 0};
+  double seconds_per_unit = 1e-6;
+  double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
+  static void Declare(ParamSchema<LidarToLidarOptions>& s) {
+    using O = LidarToLidarOptions;
+    s.Add("dataset", &O::dataset, "Kapture recording with two lidars").Path().Required();
+    s.Add("reference_lidar", &O::reference_lidar, "Reference lidar; empty: the first of sensors.txt");
+    s.Add("lidar", &O::lidar, "Calibrated lidar; empty: the other one");
+    s.Add("scans", &O::scans, "Scans accumulated").Range(1, 1000);
+    s.Add("iterations", &O::iterations, "Undistortion / registration alternations").Range(1, 10);
+    s.Add("voxel", &O::voxel, "Voxel of the accumulated clouds (m)").Range(0.01, 10);
+    s.Add("min_range", &O::min_range, "Closer returns dropped (m)").Min(0);
+    s.Add("max_range", &O::max_range, "Farther returns dropped (m)").Min(0);
+    s.Add("registration", &O::registration, "Registration back-end (stage id)");
+    s.Add("registration_params", &O::registration_params, "key=value parameters of the back-end");
+    s.Add("initial_offset", &O::initial_offset, "Offset applied to the rigs.txt extrinsic first (x y z m, roll pitch yaw deg)");
+    s.Add("seconds_per_unit", &O::seconds_per_unit, "Duration of one timestamp unit (s)").Range(1e-12, 1);
+    LOCFORGE_LIDAR_WHEEL_PARAMS(O);
+  }
+  bool Check(std::string* why) const;
+  WheelParams Wheels() const { return {wheel_radius, wheel_axle, pulses_per_rev}; }
+};
+
+class LidarToLidar : public Stage<LidarToLidarOptions> {
+ public:
+  static StageMeta Meta() {
+    return {"calib", "lidar_to_lidar", "Extrinsic of a second LiDAR w.r.t. the first by registration on their shared view",
+            {},
+            {{"rig", "kapture.dataset", "sensors/rigs.txt with the calibrated extrinsic, calib.json"}}};
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
+
 }  // namespace locforge::lidar
 
 #endif  // LOCFORGE_PLUGINS_LIDAR_STAGES_H_
