@@ -291,16 +291,19 @@ int Slam::AddLoopEdges() {
 // T_world_rig at t: the latest keyframe at or before t in t's odometry
 // segment, moved by odometry (or the first keyframe, backwards).
 Pose Slam::PoseAt(Timestamp t, bool* found) const {
+  // Keyframes are in time order (scans sorted by time): binary search, then
+  // the neighbour at or before t, else the one after, in t's segment.
+  const auto after = std::upper_bound(keyframes_.begin(), keyframes_.end(), t,
+                                      [](Timestamp v, const Keyframe& kf) { return v < kf.timestamp; });
   const Keyframe* best = nullptr;
-  for (const auto& kf : keyframes_) {
-    if (!odometry_.SameSegment(static_cast<double>(kf.timestamp), static_cast<double>(t))) continue;
-    if (!best || (kf.timestamp <= t && kf.timestamp > best->timestamp) ||
-        (best->timestamp > t && kf.timestamp < best->timestamp))
-      best = &kf;
-  }
+  const double td = static_cast<double>(t);
+  if (after != keyframes_.begin() && odometry_.SameSegment(static_cast<double>((after - 1)->timestamp), td))
+    best = &*(after - 1);
+  else if (after != keyframes_.end() && odometry_.SameSegment(static_cast<double>(after->timestamp), td))
+    best = &*after;
   *found = best != nullptr;
   if (!best) return Pose();
-  return graph_.nodes.at(best->id) * odometry_.Relative(static_cast<double>(best->timestamp), static_cast<double>(t));
+  return graph_.nodes.at(best->id) * odometry_.Relative(static_cast<double>(best->timestamp), td);
 }
 
 void Slam::Run() {
