@@ -13,6 +13,8 @@ namespace locforge::localization {
 
 namespace {
 
+constexpr size_t kMaxLoRefineInliers = 400;
+
 using Poly = std::vector<double>;  // coefficients, lowest degree first
 
 Poly Multiply(const Poly& a, const Poly& b) {
@@ -360,9 +362,18 @@ AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& cs,
         if (SolveEPnP(xs, ps, &camera_from_world))
           consider(cameras[inliers.front().camera].camera_from_rig.Inverse() * camera_from_world);
       }
+      // The LO refinement only needs to improve the hypothesis: a strided
+      // subset of large inlier sets keeps it cheap (the final one uses all).
+      std::vector<int> subset = best_inliers;
+      if (subset.size() > kMaxLoRefineInliers) {
+        std::vector<int> strided;
+        const double step = static_cast<double>(subset.size()) / kMaxLoRefineInliers;
+        for (size_t k = 0; k < kMaxLoRefineInliers; ++k)
+          strided.push_back(subset[static_cast<size_t>(k * step)]);
+        subset.swap(strided);
+      }
       Pose refined = best_pose;
-      if (RefinePose(Subset(cs, best_inliers), cameras, options.refine, &refined))
-        consider(refined);
+      if (RefinePose(Subset(cs, subset), cameras, options.refine, &refined)) consider(refined);
       if (best_inliers.size() <= before) return;
     }
   };

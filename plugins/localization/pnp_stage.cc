@@ -284,5 +284,5 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
 }  // namespace
 }  // namespace locforge::localization
 
-LOCFORGE_PLUGIN("localization", "1.0.0", "Structure-based localization: in-process PnP solver",
+LOCFORGE_PLUGIN("localization", "1.1.0", "Structure-based localization: in-process PnP solver",
                 locforge::localization::PnPLocalizer)
