@@ -2,7 +2,6 @@
 // feature folder as a kapture.local_features artifact).
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <set>
 
 #include "locforge/fs.h"
 #include "locforge/kapture/kapture.h"
@@ -50,10 +49,7 @@ class SiftStage : public PerItemStage<SiftOptions> {
   using PerItemStage::PerItemStage;
 
   std::vector<std::string> ListItems(RunContext& ctx) override {
-    k::Kapture dataset(ctx.Input("images"));
-    std::set<std::string> images;
-    dataset.ForEachDataRecord("camera", [&](const k::DataRecord& r) { images.insert(r.path); });
-    return {images.begin(), images.end()};
+    return k::Kapture(ctx.Input("images")).CameraImages();
   }
 
   void ProcessItem(RunContext& ctx, const std::string& image) override {

@@ -3,7 +3,6 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <set>
 
 #include "locforge/fs.h"
 #include "locforge/kapture/kapture.h"
@@ -48,10 +47,7 @@ class R2d2Stage : public PerItemStage<R2d2Options> {
   using PerItemStage::PerItemStage;
 
   std::vector<std::string> ListItems(RunContext& ctx) override {
-    k::Kapture dataset(ctx.Input("images"));
-    std::set<std::string> images;
-    dataset.ForEachDataRecord("camera", [&](const k::DataRecord& r) { images.insert(r.path); });
-    return {images.begin(), images.end()};
+    return k::Kapture(ctx.Input("images")).CameraImages();
   }
 
   void ProcessItem(RunContext& ctx, const std::string& image) override {

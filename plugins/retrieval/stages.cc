@@ -43,9 +43,7 @@ void WritePairs(const fs::path& out_dir, const std::vector<ScoredPair>& pairs) {
 }
 
 std::vector<std::string> CameraImages(const fs::path& dataset) {
-  std::set<std::string> images;
-  k::Kapture(dataset).ForEachDataRecord("camera", [&](const k::DataRecord& r) { images.insert(r.path); });
-  return {images.begin(), images.end()};
+  return k::Kapture(dataset).CameraImages();
 }
 
 cv::Mat ReadGray(const fs::path& dataset, const std::string& image) {

@@ -148,6 +148,12 @@ void Kapture::ForEachDataRecord(const std::string& sensor_type,
   while (reader.Next(&r)) fn(r);
 }
 
+std::vector<std::string> Kapture::CameraImages() const {
+  std::set<std::string> images;
+  ForEachDataRecord("camera", [&](const DataRecord& r) { images.insert(r.path); });
+  return {images.begin(), images.end()};
+}
+
 fs::path Kapture::RecordDataPath(const std::string& relative, const std::string& origin) const {
   return SafeJoin(root_ / layout::kRecordsData, relative,
                   origin.empty() ? std::string(layout::kRecordsData) : origin);

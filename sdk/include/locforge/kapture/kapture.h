@@ -94,6 +94,9 @@ class Kapture {
   // Calls fn for each record of a camera/lidar/depth file, streaming.
   void ForEachDataRecord(const std::string& sensor_type,
                          const std::function<void(const DataRecord&)>& fn) const;
+  // Image names of records_camera.txt, sorted, each once (the item list of
+  // per-image stages).
+  std::vector<std::string> CameraImages() const;
   // Absolute path of a record's file under sensors/records_data, refusing
   // escapes (InputError naming `origin`, e.g. "sensors/records_camera.txt:3").
   fs::path RecordDataPath(const std::string& relative, const std::string& origin = "") const;
