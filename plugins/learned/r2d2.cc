@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "locforge/error.h"
+#include "onnx_net.h"
 
 namespace locforge::learned {
 
@@ -22,21 +23,6 @@ namespace {
 constexpr double kScaleSlack = 0.001;
 constexpr double kScaleFactor = 1.189207115002721;  // 2^0.25
 
-// One network per thread and model: cv::dnn::Net is not thread-safe.
-cv::dnn::Net& ThreadNet(const std::string& model) {
-  thread_local std::map<std::string, cv::dnn::Net> nets;
-  auto it = nets.find(model);
-  if (it != nets.end()) return it->second;
-  cv::dnn::Net net;
-  try {
-    net = cv::dnn::readNetFromONNX(model);
-  } catch (const cv::Exception& e) {
-    throw InputError(model, 0, "model", std::string("cannot load the ONNX model: ") + e.what());
-  }
-  if (net.empty()) throw InputError(model, 0, "model", "cannot load the ONNX model");
-  return nets.emplace(model, std::move(net)).first->second;
-}
-
 // (pixel / 255 - mean) / std per RGB channel, float32 HxWx3.
 cv::Mat Normalise(const cv::Mat& rgb) {
   static const float kMean[3] = {0.485f, 0.456f, 0.406f};
@@ -46,17 +32,6 @@ cv::Mat Normalise(const cv::Mat& rgb) {
   cv::subtract(f, cv::Scalar(kMean[0], kMean[1], kMean[2]), f);
   cv::divide(f, cv::Scalar(kStd[0], kStd[1], kStd[2]), f);
   return f;
-}
-
-// HxWx3 -> 1x3xHxW.
-cv::Mat ToBlob(const cv::Mat& image) {
-  const int sizes[4] = {1, 3, image.rows, image.cols};
-  cv::Mat blob(4, sizes, CV_32F);
-  std::vector<cv::Mat> planes;
-  for (int c = 0; c < 3; ++c)
-    planes.emplace_back(image.rows, image.cols, CV_32F, blob.ptr<float>(0, c));
-  cv::split(image, planes);
-  return blob;
 }
 
 struct Candidate {
