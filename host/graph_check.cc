@@ -92,7 +92,7 @@ bool CanonicalParam(const std::string& node, const ParamDecl& decl, const ParamV
     errors->push_back({given.value_where, what + ": " + shown});
     return false;
   }
-  if (decl.type == LF_PARAM_PATH) {
+  if (decl.type == LF_PARAM_PATH && !value.empty()) {
     std::error_code ec;
     if (!fs::exists(value, ec)) {
       errors->push_back({given.value_where, what + ": '" + value +

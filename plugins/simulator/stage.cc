@@ -38,7 +38,8 @@ struct SimulatorOptions {
           "Query sequences in the validation area (-1: preset's)").Range(-1, 1000);
     s.Add("test_sequences", &SimulatorOptions::test_sequences, "Query sequences in the test area (-1: preset's)")
         .Range(-1, 1000);
-    s.Add("scene_file", &SimulatorOptions::scene_file, "YAML floor plan (README); empty: generated from the seed");
+    s.Add("scene_file", &SimulatorOptions::scene_file, "YAML floor plan (README); empty: generated from the seed")
+        .Path();
     s.Add("layout", &SimulatorOptions::layout,
           "splits: mapping kapture at the root, queries in validation/ and test/; single: one kapture")
         .Choices({"splits", "single"});

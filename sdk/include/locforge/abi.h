@@ -60,7 +60,8 @@ typedef enum LfParamType {
   LF_PARAM_INT = 1,          /* int64 */
   LF_PARAM_DOUBLE = 2,
   LF_PARAM_STRING = 3,
-  LF_PARAM_PATH = 4,         /* a file or folder; part of the cache key by content stamp */
+  LF_PARAM_PATH = 4,         /* a file or folder; part of the cache key by content stamp;
+                                empty = none given, allowed unless LF_PARAM_REQUIRED */
   LF_PARAM_ENUM = 5,         /* one of `choices` */
   LF_PARAM_INT_LIST = 6,
   LF_PARAM_DOUBLE_LIST = 7,

@@ -161,6 +161,8 @@ class ParamBuilder {
     return *this;
   }
   // A string naming a file or folder (its content stamp enters cache keys).
+  // The graph checks that it exists. Unless Required(), it may be empty:
+  // "none given" (an optional input file, e.g. a supplied vocabulary).
   ParamBuilder& Path() { decl_->type = LF_PARAM_PATH; return *this; }
   // A string restricted to these values.
   ParamBuilder& Choices(std::vector<std::string> choices) {

@@ -132,7 +132,9 @@ std::string ValidateParamValue(const ParamDecl& d, const std::string& value) {
     case LF_PARAM_INT: return CheckNumber(d, value, true);
     case LF_PARAM_DOUBLE: return CheckNumber(d, value, false);
     case LF_PARAM_STRING: return "";
-    case LF_PARAM_PATH: return value.empty() ? "expected a path, got an empty string" : "";
+    // An optional path may be empty ("none given"); a required one may not.
+    case LF_PARAM_PATH:
+      return value.empty() && d.required() ? "expected a path, got an empty string" : "";
     case LF_PARAM_ENUM: {
       if (std::find(d.choices.begin(), d.choices.end(), value) != d.choices.end()) return "";
       std::string all;

@@ -197,6 +197,18 @@ TEST(ResolveParams, Required) {
                    {"input_path", "empty"});
 }
 
+TEST(ResolveParams, OptionalPathMayBeEmpty) {
+  std::vector<ParamDecl> decls = SampleDecls();
+  ParamDecl vocabulary;
+  vocabulary.name = "vocabulary";
+  vocabulary.type = LF_PARAM_PATH;  // optional: empty = train one instead
+  decls.push_back(vocabulary);
+  const auto out = ResolveParams(decls, {{"input_path", "/data"}});
+  EXPECT_EQ(out.at("vocabulary"), "");
+  EXPECT_EQ(ResolveParams(decls, {{"input_path", "/data"}, {"vocabulary", "/v.bin"}}).at("vocabulary"),
+            "/v.bin");
+}
+
 TEST(ResolveParams, EnumChoices) {
   EXPECT_EQ(ResolveParams(SampleDecls(), {{"input_path", "x"}, {"method", "ndt"}}).at("method"),
             "ndt");

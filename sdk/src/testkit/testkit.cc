@@ -99,7 +99,9 @@ std::vector<std::pair<std::string, std::string>> InvalidValues(const ParamDecl& 
       if (d.has_max) out.push_back({FormatDouble(d.max_value + step_max), "above the maximum"});
       break;
     case LF_PARAM_ENUM: out.push_back({"__not_a_choice__", "not one of the choices"}); break;
-    case LF_PARAM_PATH: out.push_back({"", "an empty path"}); break;
+    case LF_PARAM_PATH:
+      if (d.required()) out.push_back({"", "an empty path"});  // optional paths may be empty
+      break;
     case LF_PARAM_INT_LIST:
     case LF_PARAM_DOUBLE_LIST:
       out.push_back({"not_a_number", "a list with a non-numeric element"});
