@@ -615,34 +615,47 @@ ImportReport ImportFromColmap(const fs::path& database, const fs::path& model_di
 
   // reconstruction/points3d.txt + observations.txt, in the model's order.
   if (has_model && options.import_points3d && !model.points3d.empty()) {
-    std::vector<kapture::Point3d> points;
-    kapture::Observations observations;
-    points.reserve(model.points3d.size());
-    std::unordered_map<ImageId, const std::string*> names;
-    for (const ModelImage& i : model.images) names[i.image_id] = &i.name;
-    for (const ModelPoint3D& p : model.points3d) {
-      kapture::Point3d q;
-      q.x = p.xyz.x();
-      q.y = p.xyz.y();
-      q.z = p.xyz.z();
-      q.r = p.color[0];
-      q.g = p.color[1];
-      q.b = p.color[2];
-      kapture::ObservationsEntry entry;
-      entry.point3d_id = static_cast<int64_t>(points.size());
-      entry.keypoints_type = type;
-      for (const TrackElement& e : p.track) {
-        entry.features.emplace_back(*names.at(e.image_id), static_cast<int64_t>(e.point2d_idx));
-      }
-      report.observations += static_cast<int64_t>(entry.features.size());
-      points.push_back(q);
-      if (!entry.features.empty()) observations.push_back(std::move(entry));
-    }
-    kapture::WritePoints3d(kapture_out / "reconstruction/points3d.txt", points);
-    kapture::WriteObservations(kapture_out / "reconstruction/observations.txt", observations);
-    report.points3d = static_cast<int64_t>(points.size());
+    report.observations += WriteKapturePoints(model, type, kapture_out);
+    report.points3d = static_cast<int64_t>(model.points3d.size());
   }
   return report;
+}
+
+int64_t WriteKapturePoints(const Reconstruction& model, const std::string& keypoints_type,
+                           const fs::path& kapture_root) {
+  std::vector<kapture::Point3d> points;
+  kapture::Observations observations;
+  points.reserve(model.points3d.size());
+  std::unordered_map<ImageId, const std::string*> names;
+  for (const ModelImage& i : model.images) names[i.image_id] = &i.name;
+  int64_t count = 0;
+  for (const ModelPoint3D& p : model.points3d) {
+    kapture::Point3d q;
+    q.x = p.xyz.x();
+    q.y = p.xyz.y();
+    q.z = p.xyz.z();
+    q.r = p.color[0];
+    q.g = p.color[1];
+    q.b = p.color[2];
+    kapture::ObservationsEntry entry;
+    entry.point3d_id = static_cast<int64_t>(points.size());
+    entry.keypoints_type = keypoints_type;
+    for (const TrackElement& e : p.track) {
+      const auto name = names.find(e.image_id);
+      if (name == names.end()) {
+        throw Error("COLMAP model: point " + std::to_string(p.point3d_id) + " observed in image_id " +
+                    std::to_string(e.image_id) + ", which the model does not have");
+      }
+      entry.features.emplace_back(*name->second, static_cast<int64_t>(e.point2d_idx));
+    }
+    count += static_cast<int64_t>(entry.features.size());
+    points.push_back(q);
+    if (!entry.features.empty()) observations.push_back(std::move(entry));
+  }
+  fs::create_directories(kapture_root / "reconstruction");
+  kapture::WritePoints3d(kapture_root / "reconstruction/points3d.txt", points);
+  kapture::WriteObservations(kapture_root / "reconstruction/observations.txt", observations);
+  return count;
 }
 
 }  // namespace locforge::colmap

@@ -111,6 +111,13 @@ ImportReport ImportFromColmap(const std::filesystem::path& database,
                               const std::filesystem::path& kapture_out,
                               const ImportOptions& options = {});
 
+// Writes a model's 3D points as kapture reconstruction/points3d.txt and
+// observations.txt under `kapture_root` (atomically), in the model's point
+// order; observations name images by the model's image names and keypoints
+// of type `keypoints_type`. Returns the number of observations written.
+int64_t WriteKapturePoints(const Reconstruction& model, const std::string& keypoints_type,
+                           const std::filesystem::path& kapture_root);
+
 // "cam_00001" for camera_id 1, as the kapture toolbox names them.
 std::string KaptureSensorIdOf(CameraId camera_id);
 
