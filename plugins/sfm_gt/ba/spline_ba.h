@@ -1,0 +1,157 @@
+// Continuous-time spline bundle adjustment with auto-calibration: the
+// numerical core of the paper's SfM refinement (Lee et al., CVPR 2021,
+// "Large-scale Localization Datasets in Crowded Indoor Spaces", section 3.2).
+//
+// THIS HEADER IS THE CONTRACT with the plugin stage gt/spline_ba
+// (plugins/sfm_gt/spline_ba_stage.cc); change it only additively.
+//
+// Model: each platform trajectory is a uniform cumulative cubic B-spline in
+// SE(3), T_world_body(t) (spline.h). Each camera (sensor) has intrinsics and
+// an extrinsic T_body_camera whose rotation is optimised and whose
+// translation stays at the CAD value. Each image has its own pose
+// T_world_camera, tied to the spline at the image's own timestamp by the
+// pose error e_i = Log(T_world_camera_i^-1 * T_world_body(t_i) * T_body_camera)
+// (SE(3) tangent, rotation first), so asynchronous cameras are handled.
+// Residuals: Cauchy-robust reprojection error of every observation, and the
+// spline pose error of every image weighted by diag(1/sigma_r, 1/sigma_t).
+//
+// Pose directions (locforge::Pose T_a_b maps b into a): everything here is
+// world-from-X (T_world_body, T_world_camera) or body-from-camera
+// (T_body_camera). kapture/COLMAP store T_camera_world: invert on the way in.
+#ifndef LOCFORGE_SFM_SPLINE_BA_H_
+#define LOCFORGE_SFM_SPLINE_BA_H_
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "locforge/camera.h"
+#include "locforge/pose.h"
+#include "spline.h"
+
+namespace locforge::sfm {
+
+struct BAProblem {
+  // A platform trajectory: the initial (LiDAR) poses of the body at sample
+  // times. After RunSplineBA the samples hold the fitted spline evaluated at
+  // the same times.
+  struct Trajectory {
+    std::vector<double> times_s;       // increasing, seconds (any origin)
+    std::vector<Pose> T_world_body;    // world-from-body, one per time
+  };
+  // A camera: intrinsics (COLMAP models SIMPLE_PINHOLE, PINHOLE,
+  // SIMPLE_RADIAL, RADIAL, OPENCV) and the body-from-camera extrinsic.
+  struct Sensor {
+    Camera camera;
+    Pose T_body_camera;                // body-from-camera; translation is never changed
+    bool calibrate_intrinsics = true;  // and SplineBAOptions::calibrate_intrinsics
+    bool calibrate_rotation = true;    // and SplineBAOptions::calibrate_rotations
+  };
+  struct Image {
+    int trajectory = -1;  // index into trajectories (-1: no spline prior for this image)
+    int sensor = 0;       // index into sensors
+    double time_s = 0;    // the image's own timestamp, same clock/origin as its trajectory
+    Pose T_world_camera;  // world-from-camera; initial value, the adjusted one is written back
+    std::string name;
+  };
+  struct Point {
+    Eigen::Vector3d xyz = Eigen::Vector3d::Zero();  // world frame
+  };
+  struct Observation {
+    int image = 0;
+    int point = 0;
+    Eigen::Vector2d xy = Eigen::Vector2d::Zero();  // pixels, pixel centre at +0.5 (COLMAP)
+  };
+  std::vector<Trajectory> trajectories;
+  std::vector<Sensor> sensors;
+  std::vector<Image> images;
+  std::vector<Point> points;
+  std::vector<Observation> observations;
+
+  // "" when every index is in range and every camera model is supported,
+  // else the first problem found.
+  std::string Validate() const;
+};
+
+struct SplineBAOptions {
+  // Spacing of the spline knots (control poses), seconds.
+  double knot_spacing_s = 0.1;
+  // Tie each image to its trajectory's spline (off: plain bundle adjustment
+  // of free image poses; gauge then fixed as described at fix_gauge).
+  bool use_spline_prior = true;
+  // Optimise the intrinsics (all parameters of the model, see
+  // refine_principal_point) of the sensors that allow it.
+  bool calibrate_intrinsics = true;
+  bool refine_principal_point = true;
+  // Optimise the rotation of T_body_camera (only with use_spline_prior; the
+  // translation is always the CAD value, as in the paper).
+  bool calibrate_rotations = true;
+  // Standard deviations of the spline pose error e_i (rotation part in
+  // radians, translation part in metres): they absorb camera clock offsets
+  // and capture jitter (a few ms of motion).
+  double prior_sigma_rotation_rad = 0.002;  // ~0.11 deg
+  double prior_sigma_translation_m = 0.01;
+  // Gauge with spline priors: a weak prior of every spline to its initial
+  // (LiDAR) samples keeps the solution in the LiDAR map frame (6 DoF; the
+  // metric scale comes from the fixed CAD translations). 0 for either sigma
+  // disables it; the first control pose of trajectory 0 is then held fixed.
+  double trajectory_prior_sigma_rotation_rad = 0.02;  // ~1.1 deg
+  double trajectory_prior_sigma_translation_m = 0.2;
+  // Gauge without spline priors (plain BA): the pose of the first image with
+  // an observation is held fixed and, for the scale, the largest coordinate of
+  // the translation of the image farthest from it (as COLMAP fixes one
+  // coordinate of the second image).
+  bool fix_gauge = true;
+  // Cauchy loss scale of the reprojection residuals, pixels.
+  double cauchy_scale_px = 1.0;
+  bool refine_points = true;
+  int max_iterations = 100;
+  double function_tolerance = 1e-6;
+  double gradient_tolerance = 1e-10;
+  double parameter_tolerance = 1e-8;
+  // Linear solver: "auto" (SPARSE_SCHUR up to 2000 images, else
+  // ITERATIVE_SCHUR with SCHUR_JACOBI), "sparse_schur", "iterative_schur".
+  std::string linear_solver = "auto";
+  // Ceres threads of this solve only (no process-wide state is touched).
+  int num_threads = 1;
+  bool verbose = false;  // Ceres per-iteration log to stdout
+
+  bool Check() const { return CheckMessage().empty(); }
+  // "" or the first invalid field with the reason.
+  std::string CheckMessage() const;
+};
+
+struct SplineBAResult {
+  bool converged = false;  // Ceres reported convergence (not just the iteration limit)
+  bool usable = false;     // Ceres produced a usable solution (the problem was written back)
+  int iterations = 0;
+  double initial_cost = 0, final_cost = 0;  // Ceres costs (robustified, 0.5 * sum)
+  double initial_mean_reproj_px = 0, final_mean_reproj_px = 0;  // plain (non-robust) mean
+  int num_observations = 0;  // reprojection residuals used (in front of their camera)
+  int num_prior_residuals = 0;
+  int num_parameters = 0;    // tangent-space size of the variable blocks
+  double seconds = 0;        // wall time of RunSplineBA
+  std::string message;       // Ceres' message, or why nothing was done
+  // The fitted spline of each trajectory (empty without spline priors).
+  std::vector<SE3Spline> splines;
+};
+
+// Adjusts `problem` in place: images' T_world_camera, sensors' intrinsics and
+// T_body_camera rotation, points, and the trajectories' samples. Invalid
+// options or problem -> result.message says why and nothing changes.
+SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem);
+
+// Mean reprojection error (pixels) over the observations in front of their
+// camera; *count (optional) receives their number.
+double MeanReprojectionError(const BAProblem& problem, int* count = nullptr);
+
+// Per-sensor mean reprojection error and observation count.
+struct SensorStats {
+  int observations = 0;
+  double mean_reproj_px = 0;
+};
+std::vector<SensorStats> PerSensorStats(const BAProblem& problem);
+
+}  // namespace locforge::sfm
+
+#endif  // LOCFORGE_SFM_SPLINE_BA_H_
