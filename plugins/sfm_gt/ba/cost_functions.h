@@ -1,0 +1,150 @@
+// Residuals of the spline bundle adjustment (paper section 3.2), as Ceres
+// autodiff functors. Parameter blocks:
+//   image rotation q_world_camera  [qx qy qz qw] (EigenQuaternionManifold)
+//   image translation t_world_camera [3]
+//   point [3], intrinsics [NumParamsOf(model)] (COLMAP order)
+//   control pose [qx qy qz qw tx ty tz] (see spline.h)
+//   extrinsic rotation q_body_camera [qx qy qz qw]; its translation is a constant.
+#ifndef LOCFORGE_SFM_COST_FUNCTIONS_H_
+#define LOCFORGE_SFM_COST_FUNCTIONS_H_
+
+#include <ceres/autodiff_cost_function.h>
+#include <ceres/cost_function.h>
+
+#include <Eigen/Core>
+
+#include "camera_models.h"
+#include "spline.h"
+
+namespace locforge::sfm {
+
+// Reprojection error (pixels): Project(K, R_wc^T (X - t_wc)) - x_observed.
+template <CameraModelId kModel>
+struct ReprojectionError {
+  explicit ReprojectionError(const Eigen::Vector2d& xy) : observed(xy) {}
+
+  template <typename T>
+  bool operator()(const T* q_wc, const T* t_wc, const T* point, const T* intrinsics,
+                  T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(q_wc);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t(t_wc);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> X(point);
+    const Eigen::Matrix<T, 3, 1> p = q.conjugate() * (X - t);
+    if (p(2) <= T(0)) return false;  // behind the camera: reject the step
+    T xy[2];
+    ProjectT<kModel>(intrinsics, p, xy);
+    residual[0] = xy[0] - T(observed(0));
+    residual[1] = xy[1] - T(observed(1));
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Vector2d& xy) {
+    return new ceres::AutoDiffCostFunction<ReprojectionError, 2, 4, 3, 3, NumParamsOf(kModel)>(
+        new ReprojectionError(xy));
+  }
+  Eigen::Vector2d observed;
+};
+
+// Dispatch on the runtime model; nullptr for unsupported models.
+inline ceres::CostFunction* CreateReprojectionError(CameraModelId model, const Eigen::Vector2d& xy) {
+  switch (model) {
+    case CameraModelId::kSimplePinhole:
+      return ReprojectionError<CameraModelId::kSimplePinhole>::Create(xy);
+    case CameraModelId::kPinhole: return ReprojectionError<CameraModelId::kPinhole>::Create(xy);
+    case CameraModelId::kSimpleRadial:
+      return ReprojectionError<CameraModelId::kSimpleRadial>::Create(xy);
+    case CameraModelId::kRadial: return ReprojectionError<CameraModelId::kRadial>::Create(xy);
+    case CameraModelId::kOpenCV: return ReprojectionError<CameraModelId::kOpenCV>::Create(xy);
+    default: return nullptr;
+  }
+}
+
+// Spline pose error of an image (section 3.2):
+//   e_i = sqrt_info * Log( T_wc_i^-1 * T_wb(t_i) * T_bc ),
+// T_wb(t_i) from the 4 control poses of t_i's segment at fraction u, T_bc =
+// (q_bc parameter, t_bc constant). sqrt_info = diag(1/sigma_r x3, 1/sigma_t x3).
+struct SplinePoseError {
+  SplinePoseError(double u, const Eigen::Vector3d& t_bc, const Eigen::Matrix<double, 6, 1>& sqrt_info)
+      : u(u), t_bc(t_bc), sqrt_info(sqrt_info) {}
+
+  template <typename T>
+  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* q_wc,
+                  const T* t_wc, const T* q_bc, T* residual) const {
+    const PoseT<T> T_wb = EvaluateSegment(c0, c1, c2, c3, u);
+    PoseT<T> T_bc;
+    T_bc.q = Eigen::Map<const Eigen::Quaternion<T>>(q_bc);
+    T_bc.t = t_bc.cast<T>();
+    PoseT<T> T_wc;
+    T_wc.q = Eigen::Map<const Eigen::Quaternion<T>>(q_wc);
+    T_wc.t = Eigen::Map<const Eigen::Matrix<T, 3, 1>>(t_wc);
+    const Eigen::Matrix<T, 6, 1> e = LogSE3T(T_wc.Inverse() * T_wb * T_bc);
+    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double u, const Eigen::Vector3d& t_bc,
+                                     const Eigen::Matrix<double, 6, 1>& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<SplinePoseError, 6, 7, 7, 7, 7, 4, 3, 4>(
+        new SplinePoseError(u, t_bc, sqrt_info));
+  }
+  double u;
+  Eigen::Vector3d t_bc;
+  Eigen::Matrix<double, 6, 1> sqrt_info;
+};
+
+// Spline vs a measured body pose (fitting, and the weak LiDAR gauge prior):
+//   e = sqrt_info * Log( T_measured^-1 * T_wb(t) ).
+struct SplineSampleError {
+  SplineSampleError(double u, const Pose& measured, const Eigen::Matrix<double, 6, 1>& sqrt_info)
+      : u(u), measured_inverse(measured.Inverse()), sqrt_info(sqrt_info) {}
+
+  template <typename T>
+  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, T* residual) const {
+    PoseT<T> M;
+    M.q = measured_inverse.q.cast<T>();
+    M.t = measured_inverse.t.cast<T>();
+    const Eigen::Matrix<T, 6, 1> e = LogSE3T(M * EvaluateSegment(c0, c1, c2, c3, u));
+    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double u, const Pose& measured,
+                                     const Eigen::Matrix<double, 6, 1>& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<SplineSampleError, 6, 7, 7, 7, 7>(
+        new SplineSampleError(u, measured, sqrt_info));
+  }
+  double u;
+  Pose measured_inverse;
+  Eigen::Matrix<double, 6, 1> sqrt_info;
+};
+
+// Pull of a control pose to a fixed value (keeps segments without data
+// determined): e = sqrt_info * Log( T_ref^-1 * T_control ).
+struct ControlPoseError {
+  ControlPoseError(const Pose& ref, const Eigen::Matrix<double, 6, 1>& sqrt_info)
+      : ref_inverse(ref.Inverse()), sqrt_info(sqrt_info) {}
+  template <typename T>
+  bool operator()(const T* c, T* residual) const {
+    PoseT<T> M;
+    M.q = ref_inverse.q.cast<T>();
+    M.t = ref_inverse.t.cast<T>();
+    const Eigen::Matrix<T, 6, 1> e = LogSE3T(M * PoseT<T>::FromArray(c));
+    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
+    return true;
+  }
+  static ceres::CostFunction* Create(const Pose& ref, const Eigen::Matrix<double, 6, 1>& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<ControlPoseError, 6, 7>(new ControlPoseError(ref, sqrt_info));
+  }
+  Pose ref_inverse;
+  Eigen::Matrix<double, 6, 1> sqrt_info;
+};
+
+inline Eigen::Matrix<double, 6, 1> SqrtInformation(double sigma_rotation_rad, double sigma_translation_m) {
+  Eigen::Matrix<double, 6, 1> s;
+  s << Eigen::Vector3d::Constant(1.0 / sigma_rotation_rad), Eigen::Vector3d::Constant(1.0 / sigma_translation_m);
+  return s;
+}
+
+}  // namespace locforge::sfm
+
+#endif  // LOCFORGE_SFM_COST_FUNCTIONS_H_

@@ -1,0 +1,375 @@
+// The spline bundle adjustment of spline_ba.h (paper section 3.2).
+#include "spline_ba.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+#include "cost_functions.h"
+
+namespace locforge::sfm {
+
+std::string SplineBAOptions::CheckMessage() const {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0; };
+  if (!positive(knot_spacing_s)) return "knot_spacing_s must be > 0";
+  if (!positive(prior_sigma_rotation_rad)) return "prior_sigma_rotation_rad must be > 0";
+  if (!positive(prior_sigma_translation_m)) return "prior_sigma_translation_m must be > 0";
+  if (!(trajectory_prior_sigma_rotation_rad >= 0) || !std::isfinite(trajectory_prior_sigma_rotation_rad))
+    return "trajectory_prior_sigma_rotation_rad must be >= 0 (0: off)";
+  if (!(trajectory_prior_sigma_translation_m >= 0) || !std::isfinite(trajectory_prior_sigma_translation_m))
+    return "trajectory_prior_sigma_translation_m must be >= 0 (0: off)";
+  if (!positive(cauchy_scale_px)) return "cauchy_scale_px must be > 0";
+  if (max_iterations < 0) return "max_iterations must be >= 0";
+  if (!(function_tolerance >= 0) || !(gradient_tolerance >= 0) || !(parameter_tolerance >= 0))
+    return "tolerances must be >= 0";
+  if (num_threads < 1) return "num_threads must be >= 1";
+  if (linear_solver != "auto" && linear_solver != "sparse_schur" && linear_solver != "iterative_schur")
+    return "linear_solver must be auto, sparse_schur or iterative_schur (got '" + linear_solver + "')";
+  return "";
+}
+
+std::string BAProblem::Validate() const {
+  const int nt = static_cast<int>(trajectories.size()), ns = static_cast<int>(sensors.size());
+  const int ni = static_cast<int>(images.size()), np = static_cast<int>(points.size());
+  for (int t = 0; t < nt; ++t)
+    if (trajectories[t].times_s.size() != trajectories[t].T_world_body.size())
+      return "trajectory " + std::to_string(t) + ": times_s and T_world_body differ in size";
+  for (int s = 0; s < ns; ++s) {
+    const Camera& c = sensors[s].camera;
+    if (!IsSupportedModel(c.model))
+      return "sensor " + std::to_string(s) + ": camera model " + c.info().name +
+             " is not supported (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV)";
+    const std::string why = c.Validate();
+    if (!why.empty()) return "sensor " + std::to_string(s) + ": " + why;
+  }
+  for (int i = 0; i < ni; ++i) {
+    const Image& im = images[i];
+    if (im.sensor < 0 || im.sensor >= ns)
+      return "image " + std::to_string(i) + " (" + im.name + "): sensor index out of range";
+    if (im.trajectory >= nt || im.trajectory < -1)
+      return "image " + std::to_string(i) + " (" + im.name + "): trajectory index out of range";
+    if (im.trajectory >= 0 && trajectories[im.trajectory].times_s.empty())
+      return "image " + std::to_string(i) + " (" + im.name + "): its trajectory has no samples";
+  }
+  for (size_t k = 0; k < observations.size(); ++k) {
+    const Observation& o = observations[k];
+    if (o.image < 0 || o.image >= ni || o.point < 0 || o.point >= np)
+      return "observation " + std::to_string(k) + ": image or point index out of range";
+  }
+  return "";
+}
+
+namespace {
+
+bool InFront(const BAProblem& problem, const BAProblem::Observation& o, Eigen::Vector2d* xy) {
+  const BAProblem::Image& im = problem.images[o.image];
+  const Eigen::Vector3d p = im.T_world_camera.Inverse() * problem.points[o.point].xyz;
+  if (!(p.z() > 0)) return false;
+  *xy = problem.sensors[im.sensor].camera.Project(p);
+  return true;
+}
+
+// The Ceres parameter storage of a problem.
+struct Parameters {
+  std::vector<std::array<double, 4>> image_q;  // q_world_camera, x y z w
+  std::vector<std::array<double, 3>> image_t;  // t_world_camera
+  std::vector<std::array<double, 3>> points;
+  std::vector<std::vector<double>> intrinsics;
+  std::vector<std::array<double, 4>> q_body_camera;
+  std::vector<SE3Spline> splines;  // per trajectory (empty control: none)
+  std::vector<std::vector<std::array<double, 7>>> controls;
+};
+
+void CopyIn(const BAProblem& p, Parameters* x) {
+  for (const auto& im : p.images) {
+    const Eigen::Quaterniond& q = im.T_world_camera.q;
+    x->image_q.push_back({q.x(), q.y(), q.z(), q.w()});
+    x->image_t.push_back({im.T_world_camera.t.x(), im.T_world_camera.t.y(), im.T_world_camera.t.z()});
+  }
+  for (const auto& pt : p.points) x->points.push_back({pt.xyz.x(), pt.xyz.y(), pt.xyz.z()});
+  for (const auto& s : p.sensors) {
+    x->intrinsics.push_back(s.camera.params);
+    const Eigen::Quaterniond& q = s.T_body_camera.q;
+    x->q_body_camera.push_back({q.x(), q.y(), q.z(), q.w()});
+  }
+}
+
+// Fits one spline per trajectory that has images, covering its samples and
+// its images' timestamps.
+void FitSplines(const BAProblem& p, double knot_spacing_s, Parameters* x) {
+  const size_t nt = p.trajectories.size();
+  std::vector<double> begin(nt, std::numeric_limits<double>::infinity());
+  std::vector<double> end(nt, -std::numeric_limits<double>::infinity());
+  std::vector<int> count(nt, 0);
+  for (const auto& im : p.images) {
+    if (im.trajectory < 0) continue;
+    begin[im.trajectory] = std::min(begin[im.trajectory], im.time_s);
+    end[im.trajectory] = std::max(end[im.trajectory], im.time_s);
+    ++count[im.trajectory];
+  }
+  x->splines.resize(nt);
+  x->controls.resize(nt);
+  for (size_t t = 0; t < nt; ++t) {
+    if (!count[t]) continue;
+    const auto& tr = p.trajectories[t];
+    x->splines[t] = SE3Spline::Fit(tr.times_s, tr.T_world_body, knot_spacing_s, begin[t], end[t]);
+    for (const Pose& c : x->splines[t].control) {
+      std::array<double, 7> a;
+      PoseToArray(c, a.data());
+      x->controls[t].push_back(a);
+    }
+  }
+}
+
+void CopyOut(const Parameters& x, bool splines, BAProblem* p, SplineBAResult* result) {
+  for (size_t i = 0; i < p->images.size(); ++i) {
+    const auto& q = x.image_q[i];
+    const auto& t = x.image_t[i];
+    p->images[i].T_world_camera = Pose(Eigen::Quaterniond(q[3], q[0], q[1], q[2]), Eigen::Vector3d(t[0], t[1], t[2]));
+  }
+  for (size_t k = 0; k < p->points.size(); ++k)
+    p->points[k].xyz = Eigen::Vector3d(x.points[k][0], x.points[k][1], x.points[k][2]);
+  for (size_t s = 0; s < p->sensors.size(); ++s) {
+    p->sensors[s].camera.params = x.intrinsics[s];
+    const auto& q = x.q_body_camera[s];
+    p->sensors[s].T_body_camera.q = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized();
+  }
+  if (!splines) return;
+  result->splines = x.splines;
+  for (size_t t = 0; t < p->trajectories.size(); ++t) {
+    SE3Spline& spline = result->splines[t];
+    if (x.controls[t].empty()) continue;
+    for (size_t k = 0; k < spline.control.size(); ++k) spline.control[k] = PoseFromArray(x.controls[t][k].data());
+    auto& tr = p->trajectories[t];
+    for (size_t i = 0; i < tr.times_s.size(); ++i) tr.T_world_body[i] = spline.Evaluate(tr.times_s[i]);
+  }
+}
+
+}  // namespace
+
+double MeanReprojectionError(const BAProblem& problem, int* count) {
+  double sum = 0;
+  int n = 0;
+  for (const auto& o : problem.observations) {
+    Eigen::Vector2d xy;
+    if (!InFront(problem, o, &xy)) continue;
+    sum += (xy - o.xy).norm();
+    ++n;
+  }
+  if (count) *count = n;
+  return n ? sum / n : 0.0;
+}
+
+std::vector<SensorStats> PerSensorStats(const BAProblem& problem) {
+  std::vector<SensorStats> stats(problem.sensors.size());
+  for (const auto& o : problem.observations) {
+    Eigen::Vector2d xy;
+    if (!InFront(problem, o, &xy)) continue;
+    SensorStats& s = stats[problem.images[o.image].sensor];
+    s.mean_reproj_px += (xy - o.xy).norm();
+    ++s.observations;
+  }
+  for (auto& s : stats)
+    if (s.observations) s.mean_reproj_px /= s.observations;
+  return stats;
+}
+
+SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
+  const auto start = std::chrono::steady_clock::now();
+  SplineBAResult result;
+  auto elapsed = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  if (const std::string why = options.CheckMessage(); !why.empty()) {
+    result.message = "invalid options: " + why;
+    return result;
+  }
+  if (const std::string why = problem->Validate(); !why.empty()) {
+    result.message = "invalid problem: " + why;
+    return result;
+  }
+  result.initial_mean_reproj_px = MeanReprojectionError(*problem);
+  result.final_mean_reproj_px = result.initial_mean_reproj_px;
+
+  Parameters x;
+  CopyIn(*problem, &x);
+  const bool splines = options.use_spline_prior;
+  if (splines) FitSplines(*problem, options.knot_spacing_s, &x);
+
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem ceres_problem(problem_options);
+  ceres::EigenQuaternionManifold quaternion;
+  ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>> se3;
+  ceres::CauchyLoss cauchy(options.cauchy_scale_px);
+
+  // (1) Reprojection errors of the observations in front of their camera.
+  std::vector<bool> image_observed(problem->images.size(), false);
+  for (const auto& o : problem->observations) {
+    Eigen::Vector2d xy;
+    if (!InFront(*problem, o, &xy)) continue;
+    const auto& im = problem->images[o.image];
+    ceres_problem.AddResidualBlock(CreateReprojectionError(problem->sensors[im.sensor].camera.model, o.xy), &cauchy,
+                                   x.image_q[o.image].data(), x.image_t[o.image].data(), x.points[o.point].data(),
+                                   x.intrinsics[im.sensor].data());
+    image_observed[o.image] = true;
+    ++result.num_observations;
+  }
+  if (result.num_observations == 0) {
+    result.message = "nothing to adjust: no observation in front of its camera";
+    result.seconds = elapsed();
+    return result;
+  }
+
+  // (2) Spline pose errors of the observed images, (3) the weak gauge prior
+  // of each used spline to its LiDAR samples.
+  std::vector<bool> sensor_in_prior(problem->sensors.size(), false);
+  if (splines) {
+    const auto w = SqrtInformation(options.prior_sigma_rotation_rad, options.prior_sigma_translation_m);
+    for (size_t i = 0; i < problem->images.size(); ++i) {
+      const auto& im = problem->images[i];
+      if (!image_observed[i] || im.trajectory < 0) continue;
+      int s;
+      double u;
+      x.splines[im.trajectory].Locate(im.time_s, &s, &u);
+      auto& c = x.controls[im.trajectory];
+      ceres_problem.AddResidualBlock(
+          SplinePoseError::Create(u, problem->sensors[im.sensor].T_body_camera.t, w), nullptr, c[s].data(),
+          c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), x.image_q[i].data(), x.image_t[i].data(),
+          x.q_body_camera[im.sensor].data());
+      sensor_in_prior[im.sensor] = true;
+      ++result.num_prior_residuals;
+    }
+    const bool gauge_prior =
+        options.trajectory_prior_sigma_rotation_rad > 0 && options.trajectory_prior_sigma_translation_m > 0;
+    const auto wg = gauge_prior ? SqrtInformation(options.trajectory_prior_sigma_rotation_rad,
+                                                  options.trajectory_prior_sigma_translation_m)
+                                : Eigen::Matrix<double, 6, 1>::Zero().eval();
+    bool fixed_one = false;
+    for (size_t t = 0; t < x.controls.size(); ++t) {
+      auto& c = x.controls[t];
+      if (c.empty()) continue;
+      const auto& tr = problem->trajectories[t];
+      // Every control pose needs a residual to be in the problem; controls
+      // no image touches are simply not adjusted (and written back as fitted).
+      if (gauge_prior) {
+        for (size_t i = 0; i < tr.times_s.size(); ++i) {
+          int s;
+          double u;
+          x.splines[t].Locate(tr.times_s[i], &s, &u);
+          ceres_problem.AddResidualBlock(SplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr, c[s].data(),
+                                         c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
+          ++result.num_prior_residuals;
+        }
+      }
+      for (auto& ck : c)
+        if (ceres_problem.HasParameterBlock(ck.data())) {
+          ceres_problem.SetManifold(ck.data(), &se3);
+          if (!gauge_prior && !fixed_one) {
+            ceres_problem.SetParameterBlockConstant(ck.data());
+            fixed_one = true;
+          }
+        }
+    }
+  }
+
+  // Manifolds and what is held constant.
+  std::unique_ptr<ceres::SubsetManifold> scale_gauge;
+  std::vector<std::unique_ptr<ceres::SubsetManifold>> pp_fixed;
+  for (size_t i = 0; i < problem->images.size(); ++i)
+    if (image_observed[i]) ceres_problem.SetManifold(x.image_q[i].data(), &quaternion);
+  if (!splines && options.fix_gauge) {
+    const size_t first = std::find(image_observed.begin(), image_observed.end(), true) - image_observed.begin();
+    ceres_problem.SetParameterBlockConstant(x.image_q[first].data());
+    ceres_problem.SetParameterBlockConstant(x.image_t[first].data());
+    const Eigen::Vector3d c0 = problem->images[first].T_world_camera.t;
+    size_t far = first;
+    double best = 0;
+    for (size_t i = 0; i < problem->images.size(); ++i)
+      if (image_observed[i] && (problem->images[i].T_world_camera.t - c0).norm() > best) {
+        best = (problem->images[i].T_world_camera.t - c0).norm();
+        far = i;
+      }
+    if (far != first) {
+      int axis;
+      (problem->images[far].T_world_camera.t - c0).cwiseAbs().maxCoeff(&axis);
+      scale_gauge = std::make_unique<ceres::SubsetManifold>(3, std::vector<int>{axis});
+      ceres_problem.SetManifold(x.image_t[far].data(), scale_gauge.get());
+    }
+  }
+  for (size_t s = 0; s < problem->sensors.size(); ++s) {
+    const auto& sensor = problem->sensors[s];
+    double* k = x.intrinsics[s].data();
+    if (ceres_problem.HasParameterBlock(k)) {
+      if (!(options.calibrate_intrinsics && sensor.calibrate_intrinsics)) {
+        ceres_problem.SetParameterBlockConstant(k);
+      } else if (!options.refine_principal_point) {
+        const int pp = PrincipalPointIndex(sensor.camera.model);
+        pp_fixed.push_back(std::make_unique<ceres::SubsetManifold>(static_cast<int>(x.intrinsics[s].size()),
+                                                                   std::vector<int>{pp, pp + 1}));
+        ceres_problem.SetManifold(k, pp_fixed.back().get());
+      }
+    }
+    double* q = x.q_body_camera[s].data();
+    if (sensor_in_prior[s]) {
+      ceres_problem.SetManifold(q, &quaternion);
+      if (!(options.calibrate_rotations && sensor.calibrate_rotation)) ceres_problem.SetParameterBlockConstant(q);
+    }
+  }
+  if (!options.refine_points)
+    for (auto& p : x.points)
+      if (ceres_problem.HasParameterBlock(p.data())) ceres_problem.SetParameterBlockConstant(p.data());
+
+  // Schur elimination of the points.
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  std::vector<double*> blocks;
+  ceres_problem.GetParameterBlocks(&blocks);
+  for (double* b : blocks) ordering->AddElementToGroup(b, 1);
+  for (auto& p : x.points)
+    if (ceres_problem.HasParameterBlock(p.data()) && !ceres_problem.IsParameterBlockConstant(p.data()))
+      ordering->AddElementToGroup(p.data(), 0);
+  if (ordering->GroupSize(0) == 0) ordering = nullptr;  // no points to eliminate
+  result.num_parameters = ceres_problem.NumParameters();
+  for (double* b : blocks)
+    result.num_parameters += ceres_problem.IsParameterBlockConstant(b)
+                                 ? -ceres_problem.ParameterBlockSize(b)
+                                 : ceres_problem.ParameterBlockTangentSize(b) - ceres_problem.ParameterBlockSize(b);
+
+  ceres::Solver::Options solver;
+  const bool iterative = options.linear_solver == "iterative_schur" ||
+                         (options.linear_solver == "auto" && problem->images.size() > 2000);
+  solver.linear_solver_type = ordering ? (iterative ? ceres::ITERATIVE_SCHUR : ceres::SPARSE_SCHUR)
+                                       : ceres::SPARSE_NORMAL_CHOLESKY;
+  solver.preconditioner_type = ceres::SCHUR_JACOBI;
+  solver.linear_solver_ordering = ordering;
+  solver.max_num_iterations = options.max_iterations;
+  solver.function_tolerance = options.function_tolerance;
+  solver.gradient_tolerance = options.gradient_tolerance;
+  solver.parameter_tolerance = options.parameter_tolerance;
+  solver.num_threads = options.num_threads;
+  solver.minimizer_progress_to_stdout = options.verbose;
+  solver.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver, &ceres_problem, &summary);
+
+  result.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  result.initial_cost = summary.initial_cost;
+  result.final_cost = summary.final_cost;
+  result.converged = summary.termination_type == ceres::CONVERGENCE;
+  result.usable = summary.IsSolutionUsable();
+  result.message = summary.message;
+  if (result.usable) {
+    CopyOut(x, splines, problem, &result);
+    result.final_mean_reproj_px = MeanReprojectionError(*problem);
+  }
+  result.seconds = elapsed();
+  return result;
+}
+
+}  // namespace locforge::sfm
