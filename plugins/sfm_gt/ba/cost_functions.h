@@ -139,6 +139,24 @@ struct ControlPoseError {
   Eigen::Matrix<double, 6, 1> sqrt_info;
 };
 
+// Second difference of three consecutive control poses (zero on a constant
+// twist): e = sqrt_info * Log( (T_{k-1}^-1 T_k)^-1 (T_k^-1 T_{k+1}) ). A weak
+// smoothness term that fixes the end control poses a fit leaves free.
+struct ControlSmoothnessError {
+  explicit ControlSmoothnessError(const Eigen::Matrix<double, 6, 1>& sqrt_info) : sqrt_info(sqrt_info) {}
+  template <typename T>
+  bool operator()(const T* c0, const T* c1, const T* c2, T* residual) const {
+    const PoseT<T> P0 = PoseT<T>::FromArray(c0), P1 = PoseT<T>::FromArray(c1), P2 = PoseT<T>::FromArray(c2);
+    const Eigen::Matrix<T, 6, 1> e = LogSE3T((P0.Inverse() * P1).Inverse() * (P1.Inverse() * P2));
+    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
+    return true;
+  }
+  static ceres::CostFunction* Create(const Eigen::Matrix<double, 6, 1>& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<ControlSmoothnessError, 6, 7, 7, 7>(new ControlSmoothnessError(sqrt_info));
+  }
+  Eigen::Matrix<double, 6, 1> sqrt_info;
+};
+
 inline Eigen::Matrix<double, 6, 1> SqrtInformation(double sigma_rotation_rad, double sigma_translation_m) {
   Eigen::Matrix<double, 6, 1> s;
   s << Eigen::Vector3d::Constant(1.0 / sigma_rotation_rad), Eigen::Vector3d::Constant(1.0 / sigma_translation_m);

@@ -81,7 +81,9 @@ SE3Spline SE3Spline::Fit(const std::vector<double>& times_s, const std::vector<P
     if (spline.control[k].q.coeffs().dot(spline.control[k - 1].q.coeffs()) < 0)
       spline.control[k].q.coeffs() *= -1;
 
-  // Least-squares fit to the samples (1 cm ~ 0.01 rad), weak pull (x1e-3) to the init.
+  // Least-squares fit to the samples (1 cm ~ 0.01 rad), a weak smoothness
+  // term (second differences, sigma 0.1 per knot; zero on constant twists)
+  // and a very weak pull (sigma 1000) to the init.
   std::vector<std::array<double, 7>> c(spline.control.size());
   for (size_t k = 0; k < c.size(); ++k) PoseToArray(spline.control[k], c[k].data());
   ceres::Problem::Options problem_options;
@@ -89,7 +91,7 @@ SE3Spline SE3Spline::Fit(const std::vector<double>& times_s, const std::vector<P
   ceres::Problem problem(problem_options);
   ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>> manifold;
   const Eigen::Matrix<double, 6, 1> w_sample = SqrtInformation(0.01, 0.01);
-  const Eigen::Matrix<double, 6, 1> w_control = SqrtInformation(10.0, 10.0);
+  const Eigen::Matrix<double, 6, 1> w_control = SqrtInformation(1e3, 1e3);
   for (size_t i = 0; i < n; ++i) {
     int s;
     double u;
@@ -97,13 +99,20 @@ SE3Spline SE3Spline::Fit(const std::vector<double>& times_s, const std::vector<P
     problem.AddResidualBlock(SplineSampleError::Create(u, T_world_body[i], w_sample), nullptr,
                              c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
   }
+  const Eigen::Matrix<double, 6, 1> w_smooth = SqrtInformation(0.1, 0.1);
+  for (size_t k = 1; k + 1 < c.size(); ++k)
+    problem.AddResidualBlock(ControlSmoothnessError::Create(w_smooth), nullptr, c[k - 1].data(), c[k].data(),
+                             c[k + 1].data());
   for (size_t k = 0; k < c.size(); ++k) {
     problem.AddResidualBlock(ControlPoseError::Create(spline.control[k], w_control), nullptr, c[k].data());
     problem.SetManifold(c[k].data(), &manifold);
   }
   ceres::Solver::Options options;
   options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  options.max_num_iterations = 20;
+  options.max_num_iterations = 50;
+  options.function_tolerance = 1e-14;
+  options.gradient_tolerance = 1e-16;
+  options.parameter_tolerance = 1e-12;
   options.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);

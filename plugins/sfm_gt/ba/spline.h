@@ -108,13 +108,14 @@ Eigen::Matrix<T, 3, 3> LeftJacobianSO3T(const Eigen::Matrix<T, 3, 1>& w) {
   using std::sqrt;
   const T theta2 = w.squaredNorm();
   T a, b;
-  if (theta2 > T(1e-6)) {
+  if (theta2 > T(1e-2)) {
     const T theta = sqrt(theta2);
     a = (T(1) - cos(theta)) / theta2;
     b = (theta - sin(theta)) / (theta2 * theta);
-  } else {
-    a = T(0.5) - theta2 / T(24);
-    b = T(1.0 / 6.0) - theta2 / T(120);
+  } else {  // Taylor series: the closed forms cancel badly (in Jets too) at small angles
+    const T theta4 = theta2 * theta2;
+    a = T(0.5) - theta2 / T(24) + theta4 / T(720) - theta4 * theta2 / T(40320);
+    b = T(1.0 / 6.0) - theta2 / T(120) + theta4 / T(5040) - theta4 * theta2 / T(362880);
   }
   const Eigen::Matrix<T, 3, 3> W = Hat(w);
   return Eigen::Matrix<T, 3, 3>::Identity() + a * W + b * W * W;
@@ -127,11 +128,12 @@ Eigen::Matrix<T, 3, 3> InverseLeftJacobianSO3T(const Eigen::Matrix<T, 3, 1>& w) 
   using std::sqrt;
   const T theta2 = w.squaredNorm();
   T c;
-  if (theta2 > T(1e-6)) {
+  if (theta2 > T(1e-2)) {
     const T theta = sqrt(theta2);
     c = (T(1) - theta * sin(theta) / (T(2) * (T(1) - cos(theta)))) / theta2;
-  } else {
-    c = T(1.0 / 12.0) + theta2 / T(720);
+  } else {  // Taylor series (1/12 + x^2/720 + x^4/30240 + x^6/1209600)
+    const T theta4 = theta2 * theta2;
+    c = T(1.0 / 12.0) + theta2 / T(720) + theta4 / T(30240) + theta4 * theta2 / T(1209600);
   }
   const Eigen::Matrix<T, 3, 3> W = Hat(w);
   return Eigen::Matrix<T, 3, 3>::Identity() - T(0.5) * W + c * W * W;
@@ -197,9 +199,9 @@ class SE3Spline {
   // max(times)] (optionally widened to [t_begin, t_end] to cover images),
   // to the samples T_world_body[i] at times_s[i]: control poses initialised
   // by interpolating the samples at their centre times, then a least-squares
-  // fit of Log(T_sample^-1 T(t_i)) (Ceres, a few iterations), with a weak
-  // pull to the initial control poses so segments without samples stay
-  // determined. Needs >= 1 sample; times need not be sorted.
+  // fit of Log(T_sample^-1 T(t_i)) (Ceres), with a weak smoothness term on
+  // the control poses' second differences (zero on constant twists) so the
+  // end control poses and segments without samples stay determined. Needs >= 1 sample; times need not be sorted.
   static SE3Spline Fit(const std::vector<double>& times_s, const std::vector<Pose>& T_world_body,
                        double knot_spacing_s);
   static SE3Spline Fit(const std::vector<double>& times_s, const std::vector<Pose>& T_world_body,

@@ -1,0 +1,215 @@
+#include "synthetic.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace locforge::sfm {
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+Eigen::Quaterniond Rot(const Eigen::Vector3d& axis, double angle) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis.normalized()));
+}
+
+// True platform pose of sequence k at time t (seconds from the sequence
+// start): arcs of an ellipse, heading along the velocity, small roll/pitch.
+struct Motion {
+  double a, b, omega, theta0, phase;
+  Pose At(double t) const {
+    const double th = theta0 + omega * t;
+    const Eigen::Vector3d p(a * std::cos(th), b * std::sin(th), 0.02 * std::sin(2.0 * t + phase));
+    const double yaw = std::atan2(b * std::cos(th), -a * std::sin(th));
+    const Eigen::Quaterniond q = Rot(Eigen::Vector3d::UnitZ(), yaw) *
+                                 Rot(Eigen::Vector3d::UnitY(), 0.01 * std::sin(0.7 * t + phase)) *
+                                 Rot(Eigen::Vector3d::UnitX(), 0.01 * std::sin(1.3 * t + 2 * phase));
+    return Pose(q, p);
+  }
+};
+
+Eigen::Vector3d RandomUnit(std::mt19937& rng) {
+  std::normal_distribution<double> n(0, 1);
+  return Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+}
+
+}  // namespace
+
+SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
+  std::mt19937 rng(o.seed);
+  std::normal_distribution<double> normal(0, 1);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  SyntheticScene scene;
+  BAProblem& truth = scene.truth;
+  BAProblem& init = scene.initial;
+
+  // Ellipse sized so that every sequence covers ~2 rad at the given speed.
+  const double path = o.speed_mps * o.duration_s;
+  const double a = std::max(6.0, path / 2.0 / 1.3), b = 0.6 * a;
+  const double omega = o.speed_mps / (0.8 * a);
+  std::vector<Motion> motions;
+  for (int k = 0; k < o.sequences; ++k)
+    motions.push_back({a, b, omega, 0.5 * omega * o.duration_s * k, 0.9 * k});
+  auto sequence_t0 = [](int k) { return 1000.0 * k; };  // each sequence on its own clock range
+
+  // Cameras.
+  const Eigen::Matrix3d R0 = (Eigen::Matrix3d() << 0, 0, 1, -1, 0, 0, 0, -1, 0).finished();
+  const CameraModelId models[] = {CameraModelId::kPinhole, CameraModelId::kSimpleRadial, CameraModelId::kOpenCV,
+                                  CameraModelId::kRadial, CameraModelId::kSimplePinhole};
+  std::vector<double> rates, offsets;
+  for (int c = 0; c < o.cameras; ++c) {
+    const bool phone = c % 2 == 1;
+    const int w = phone ? 540 : 648, h = phone ? 720 : 512;
+    const double f = 0.5 * std::hypot(w, h) / std::tan(0.5 * (phone ? 77.0 : 95.0) * kDeg);
+    Camera cam;
+    cam.model = models[c % 5];
+    cam.width = w;
+    cam.height = h;
+    switch (cam.model) {
+      case CameraModelId::kPinhole: cam.params = {f, f * 1.002, w / 2.0 + 3, h / 2.0 - 2}; break;
+      case CameraModelId::kSimpleRadial: cam.params = {f, w / 2.0, h / 2.0, -0.04}; break;
+      case CameraModelId::kOpenCV: cam.params = {f, f, w / 2.0 - 1, h / 2.0 + 2, -0.05, 0.01, 0.001, -0.0005}; break;
+      case CameraModelId::kRadial: cam.params = {f, w / 2.0, h / 2.0, -0.03, 0.005}; break;
+      default: cam.params = {f, w / 2.0, h / 2.0}; break;
+    }
+    const double yaw = 2 * M_PI * c / o.cameras;
+    const Eigen::Quaterniond q_bc(Rot(Eigen::Vector3d::UnitZ(), yaw) * Rot(Eigen::Vector3d::UnitY(), -10 * kDeg) *
+                                  Eigen::Quaterniond(R0));
+    const Eigen::Vector3d t_bc = Rot(Eigen::Vector3d::UnitZ(), yaw) * Eigen::Vector3d(0.25, 0, 0) +
+                                 Eigen::Vector3d(0, 0, phone ? 1.70 : 1.55);
+    BAProblem::Sensor s;
+    s.camera = cam;
+    s.T_body_camera = Pose(q_bc, t_bc);
+    truth.sensors.push_back(s);
+    // Perturbed calibration.
+    BAProblem::Sensor p = s;
+    const double sign = uniform(rng) < 0.5 ? -1 : 1;
+    const bool two_focals = cam.model == CameraModelId::kPinhole || cam.model == CameraModelId::kOpenCV;
+    const int pp = two_focals ? 2 : 1;
+    p.camera.params[0] *= 1 + sign * o.focal_perturbation;
+    if (two_focals) p.camera.params[1] *= 1 + sign * o.focal_perturbation;
+    p.camera.params[pp] += o.principal_point_perturbation_px * normal(rng);
+    p.camera.params[pp + 1] += o.principal_point_perturbation_px * normal(rng);
+    p.T_body_camera.q = (Rot(RandomUnit(rng), o.rotation_perturbation_deg * kDeg) * s.T_body_camera.q).normalized();
+    init.sensors.push_back(p);
+    rates.push_back(phone ? 1.0 : 2.5);
+    offsets.push_back(o.clock_offset_sigma_s * normal(rng));
+  }
+
+  // Trajectories: true and LiDAR-like samples at 10 Hz, 1 s beyond the images.
+  for (int k = 0; k < o.sequences; ++k) {
+    BAProblem::Trajectory tt, ti;
+    Eigen::Vector3d amp_p[2], amp_r[2], freq, ph;
+    for (int j = 0; j < 2; ++j) {
+      amp_p[j] = RandomUnit(rng) * o.lidar_smooth_m / std::sqrt(2.0);
+      amp_r[j] = RandomUnit(rng) * o.lidar_smooth_deg * kDeg / std::sqrt(2.0);
+    }
+    for (int j = 0; j < 3; ++j) {
+      freq(j) = 2 * M_PI / (3.0 + 6.0 * uniform(rng));
+      ph(j) = 2 * M_PI * uniform(rng);
+    }
+    for (double t = -1.0; t <= o.duration_s + 1.0 + 1e-9; t += 0.1) {
+      const Pose T = motions[k].At(t);
+      tt.times_s.push_back(sequence_t0(k) + t);
+      tt.T_world_body.push_back(T);
+      const double s1 = std::sin(freq(0) * t + ph(0)), s2 = std::sin(freq(1) * t + ph(1));
+      const Eigen::Vector3d dp = amp_p[0] * s1 + amp_p[1] * s2 +
+                                 o.lidar_white_m / std::sqrt(3.0) * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+      const Eigen::Vector3d dr = amp_r[0] * s2 + amp_r[1] * std::sin(freq(2) * t + ph(2)) +
+                                 o.lidar_white_deg * kDeg / std::sqrt(3.0) *
+                                     Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+      ti.times_s.push_back(sequence_t0(k) + t);
+      ti.T_world_body.push_back(Pose(T.q * ExpSO3(dr), T.t + dp));
+    }
+    truth.trajectories.push_back(tt);
+    init.trajectories.push_back(ti);
+  }
+
+  // Images: nominal triggers per camera, true capture = nominal + jitter,
+  // timestamp = nominal + clock offset.
+  for (int k = 0; k < o.sequences; ++k) {
+    const auto& lidar = init.trajectories[k];
+    for (int c = 0; c < o.cameras; ++c) {
+      const double phase = uniform(rng) / rates[c];
+      for (double nominal = phase; nominal < o.duration_s; nominal += 1.0 / rates[c]) {
+        const double capture = nominal + o.jitter_sigma_s * normal(rng);
+        BAProblem::Image im;
+        im.trajectory = k;
+        im.sensor = c;
+        im.time_s = sequence_t0(k) + nominal + offsets[c];
+        im.name = "seq" + std::to_string(k) + "/cam" + std::to_string(c) + "/" + std::to_string(truth.images.size());
+        im.T_world_camera = motions[k].At(capture) * truth.sensors[c].T_body_camera;
+        truth.images.push_back(im);
+        // Initial: the LiDAR trajectory interpolated at the timestamp.
+        const double tl = im.time_s - sequence_t0(k);
+        const size_t i0 = std::clamp<size_t>(static_cast<size_t>((tl + 1.0) / 0.1), 0, lidar.times_s.size() - 2);
+        const double alpha = (im.time_s - lidar.times_s[i0]) / (lidar.times_s[i0 + 1] - lidar.times_s[i0]);
+        im.T_world_camera = Interpolate(lidar.T_world_body[i0], lidar.T_world_body[i0 + 1], alpha) *
+                            init.sensors[c].T_body_camera;
+        init.images.push_back(im);
+        scene.capture_time_s.push_back(sequence_t0(k) + capture);
+      }
+    }
+  }
+
+  // Wall points of the room around the ellipse (4 walls, z in [0, 4] m).
+  const double X = a + 6, Y = b + 6, H = 4;
+  const int nx = static_cast<int>(o.points_per_m2 * 2 * X * H), ny = static_cast<int>(o.points_per_m2 * 2 * Y * H);
+  std::vector<Eigen::Vector3d> candidates;
+  for (int side = 0; side < 2; ++side) {
+    for (int i = 0; i < nx; ++i)
+      candidates.emplace_back((2 * uniform(rng) - 1) * X, side ? Y : -Y, H * uniform(rng));
+    for (int i = 0; i < ny; ++i)
+      candidates.emplace_back(side ? X : -X, (2 * uniform(rng) - 1) * Y, H * uniform(rng));
+  }
+  for (const Eigen::Vector3d& P : candidates) {
+    std::vector<BAProblem::Observation> obs;
+    for (size_t i = 0; i < truth.images.size(); ++i) {
+      const auto& im = truth.images[i];
+      const Camera& cam = truth.sensors[im.sensor].camera;
+      const Eigen::Vector3d pc = im.T_world_camera.Inverse() * P;
+      if (pc.z() < 0.5 || pc.z() > 40 || pc.head<2>().norm() > 1.5 * pc.z()) continue;
+      const Eigen::Vector2d xy = cam.Project(pc);
+      if (xy.x() < 0 || xy.y() < 0 || xy.x() > cam.width || xy.y() > cam.height) continue;
+      const Eigen::Vector2d noise(normal(rng), normal(rng));
+      obs.push_back({static_cast<int>(i), static_cast<int>(truth.points.size()), xy + o.pixel_noise_px * noise});
+    }
+    if (static_cast<int>(obs.size()) < o.min_track_length) continue;
+    truth.points.push_back({P});
+    init.points.push_back({P + o.point_noise_m * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))});
+    truth.observations.insert(truth.observations.end(), obs.begin(), obs.end());
+  }
+  init.observations = truth.observations;
+  return scene;
+}
+
+SceneErrors CompareToTruth(const BAProblem& est, const BAProblem& truth) {
+  SceneErrors e;
+  double sp = 0, sr = 0;
+  for (size_t i = 0; i < truth.images.size(); ++i) {
+    sp += (est.images[i].T_world_camera.t - truth.images[i].T_world_camera.t).squaredNorm();
+    const double r = RotationAngleDeg(est.images[i].T_world_camera.q, truth.images[i].T_world_camera.q);
+    sr += r * r;
+  }
+  if (!truth.images.empty()) {
+    e.position_rms_m = std::sqrt(sp / truth.images.size());
+    e.rotation_rms_deg = std::sqrt(sr / truth.images.size());
+  }
+  for (size_t s = 0; s < truth.sensors.size(); ++s) {
+    const Camera& a = est.sensors[s].camera;
+    const Camera& b = truth.sensors[s].camera;
+    e.focal_max_rel = std::max({e.focal_max_rel, std::abs(a.fx() / b.fx() - 1), std::abs(a.fy() / b.fy() - 1)});
+    e.extrinsic_rotation_max_deg = std::max(
+        e.extrinsic_rotation_max_deg, RotationAngleDeg(est.sensors[s].T_body_camera.q, truth.sensors[s].T_body_camera.q));
+  }
+  double st = 0;
+  size_t n = 0;
+  for (size_t k = 0; k < truth.trajectories.size(); ++k)
+    for (size_t i = 0; i < truth.trajectories[k].times_s.size(); ++i, ++n)
+      st += (est.trajectories[k].T_world_body[i].t - truth.trajectories[k].T_world_body[i].t).squaredNorm();
+  if (n) e.trajectory_position_rms_m = std::sqrt(st / n);
+  return e;
+}
+
+}  // namespace locforge::sfm
