@@ -5,7 +5,9 @@
 #include <sstream>
 
 #include "colmap_db.h"
+#include "kapture_merge.h"
 #include "vocab_tree.h"
+#include "locforge/colmap/convert.h"
 #include "locforge/colmap/model.h"
 #include "locforge/colmap/run.h"
 #include "locforge/kapture/kapture.h"
@@ -180,38 +182,11 @@ class ColmapTriangulator : public Stage<TriangulatorOptions> {
     o.Mapper().AddTo(&args);
     const auto run = colmap::RunColmap(args, RunOptionsFor(ctx, "point_triangulator", o.timeout_s));
     const colmap::Reconstruction model = colmap::ReadModel(out / "model");
-    WriteKaptureReconstruction(model, type, out);
+    colmap::WriteKapturePoints(model, type, out);
     ctx.Info("point_triangulator: " + std::to_string(model.points3d.size()) + " points in " +
              std::to_string(run.seconds) + " s");
   }
 
- private:
-  static void WriteKaptureReconstruction(const colmap::Reconstruction& model,
-                                         const std::string& type, const fs::path& out) {
-    std::map<colmap::ImageId, const colmap::ModelImage*> images;
-    for (const auto& image : model.images) images[image.image_id] = &image;
-    std::vector<kp::Point3d> points;
-    kp::Observations observations;
-    for (const auto& p : model.points3d) {
-      kp::Point3d q;
-      q.x = p.xyz.x();
-      q.y = p.xyz.y();
-      q.z = p.xyz.z();
-      q.r = p.color[0];
-      q.g = p.color[1];
-      q.b = p.color[2];
-      kp::ObservationsEntry entry;
-      entry.point3d_id = static_cast<int64_t>(points.size());
-      entry.keypoints_type = type;
-      for (const auto& t : p.track)
-        entry.features.emplace_back(images.at(t.image_id)->name, t.point2d_idx);
-      points.push_back(q);
-      observations.push_back(std::move(entry));
-    }
-    fs::create_directories(out / kp::layout::kReconstruction);
-    kp::WritePoints3d(out / kp::layout::kPoints3d, points);
-    kp::WriteObservations(out / kp::layout::kObservations, observations);
-  }
 };
 
 class ColmapRegistrator : public Stage<RegistratorOptions> {
@@ -295,10 +270,22 @@ class ColmapRegistrator : public Stage<RegistratorOptions> {
 struct KaptureFolderOptions {
   std::string path;                // The kapture root to bring into the graph.
   bool copy_records_data = true;   // Copy images etc. (needed by stages reading pixels).
+  std::vector<std::string> subfolders;  // Kapture roots under `path` merged into one (cameras only).
   static void Declare(ParamSchema<KaptureFolderOptions>& s) {
     s.Add("path", &KaptureFolderOptions::path, "kapture root (sensors/, reconstruction/)").Path().Required();
     s.Add("copy_records_data", &KaptureFolderOptions::copy_records_data,
           "copy sensors/records_data (images); off when only features are used");
+    s.Add("subfolders", &KaptureFolderOptions::subfolders,
+          "kapture roots under `path` merged into one camera dataset, image paths prefixed "
+          "with the sub-folder (e.g. [validation, test] of a simulator recording; \".\" is "
+          "`path` itself, unprefixed); sensors, rigs, trajectories and camera records only. "
+          "Empty: `path` copied whole");
+  }
+  bool Check(std::string* why) const {
+    for (const auto& sub : subfolders)
+      if (sub.empty() || fs::path(sub).is_absolute() || sub.find("..") != std::string::npos)
+        return *why = "subfolders: '" + sub + "' is not a relative folder under path", false;
+    return true;
   }
 };
 
@@ -313,6 +300,21 @@ class KaptureFolder : public Stage<KaptureFolderOptions> {
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override {
+    if (!options().subfolders.empty()) {
+      std::vector<MergeSource> sources;
+      for (const auto& sub : options().subfolders)
+        sources.push_back({sub == "." ? fs::path(options().path) : fs::path(options().path) / sub,
+                           sub == "." ? "" : fs::path(sub).generic_string()});
+      const MergeReport r =
+          MergeCameraKaptures(sources, ctx.output_dir(), options().copy_records_data);
+      std::string subs;
+      for (const auto& sub : options().subfolders) subs += (subs.empty() ? "" : ", ") + sub;
+      ctx.Info("kapture " + options().path + " [" + subs + "] merged: " +
+               std::to_string(r.sensors) + " sensors, " + std::to_string(r.images) + " images, " +
+               std::to_string(r.poses) + " poses, " + std::to_string(r.data_files) +
+               " image files");
+      return;
+    }
     kp::CopyOptions o;
     o.copy_records_data = options().copy_records_data;
     o.overwrite = true;
@@ -325,7 +327,7 @@ class KaptureFolder : public Stage<KaptureFolderOptions> {
 }  // namespace
 }  // namespace locforge::colmap_stages
 
-LOCFORGE_PLUGIN("colmap_stages", "1.0.0",
+LOCFORGE_PLUGIN("colmap_stages", "1.1.0",
                 "COLMAP point_triangulator / image_registrator stages (paper's parameters)",
                 locforge::colmap_stages::ColmapTriangulator,
                 locforge::colmap_stages::ColmapRegistrator,

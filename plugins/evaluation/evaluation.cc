@@ -52,18 +52,6 @@ std::string EscapeLatex(const std::string& s) {
   return out;
 }
 
-std::string EscapeXml(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '<') out += "&lt;";
-    else if (c == '>') out += "&gt;";
-    else if (c == '&') out += "&amp;";
-    else if (c == '"') out += "&quot;";
-    else out += c;
-  }
-  return out;
-}
-
 std::string Num(double v, int digits = 2) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
@@ -199,47 +187,31 @@ std::string ToLatex(const Table& t) {
   return o.str();
 }
 
-std::string SvgLinePlot(const std::vector<CurveSeries>& series, const std::string& x_label,
-                        const std::string& y_label, double x_max, double y_max) {
-  const double w = 640, h = 420, left = 60, right = 160, top = 20, bottom = 50;
-  const double pw = w - left - right, ph = h - top - bottom;
-  auto px = [&](double x) { return left + pw * x / x_max; };
-  auto py = [&](double y) { return top + ph * (1 - y / y_max); };
-  static const char* kColors[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e",
-                                  "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"};
-  std::ostringstream o;
-  o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h
-    << "\" font-family=\"sans-serif\" font-size=\"12\">\n"
-    << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  for (int i = 0; i <= 5; ++i) {
-    const double xv = x_max * i / 5, yv = y_max * i / 5;
-    o << "<line x1=\"" << px(xv) << "\" y1=\"" << top << "\" x2=\"" << px(xv) << "\" y2=\""
-      << top + ph << "\" stroke=\"#ddd\"/>\n"
-      << "<text x=\"" << px(xv) << "\" y=\"" << top + ph + 16 << "\" text-anchor=\"middle\">"
-      << Num(xv, 2) << "</text>\n"
-      << "<line x1=\"" << left << "\" y1=\"" << py(yv) << "\" x2=\"" << left + pw << "\" y2=\""
-      << py(yv) << "\" stroke=\"#ddd\"/>\n"
-      << "<text x=\"" << left - 6 << "\" y=\"" << py(yv) + 4 << "\" text-anchor=\"end\">"
-      << Num(yv, 0) << "</text>\n";
+plot::Series RecallCurve(const std::vector<QueryError>& errors, const std::string& label,
+                         double max_position_m, double angle_per_m, int steps) {
+  plot::Series s;
+  s.label = label;
+  for (int i = 0; i <= steps; ++i) {
+    const double p = max_position_m * i / steps;
+    s.x.push_back(p);
+    s.y.push_back(100 * Recall(errors, {p, angle_per_m * p}));
   }
-  o << "<rect x=\"" << left << "\" y=\"" << top << "\" width=\"" << pw << "\" height=\"" << ph
-    << "\" fill=\"none\" stroke=\"black\"/>\n"
-    << "<text x=\"" << left + pw / 2 << "\" y=\"" << h - 10 << "\" text-anchor=\"middle\">"
-    << EscapeXml(x_label) << "</text>\n"
-    << "<text transform=\"translate(16," << top + ph / 2 << ") rotate(-90)\" text-anchor=\"middle\">"
-    << EscapeXml(y_label) << "</text>\n";
-  for (size_t s = 0; s < series.size(); ++s) {
-    const char* color = kColors[s % 8];
-    o << "<polyline fill=\"none\" stroke=\"" << color << "\" stroke-width=\"2\" points=\"";
-    for (size_t i = 0; i < series[s].x.size(); ++i)
-      o << (i ? " " : "") << px(series[s].x[i]) << "," << py(series[s].y[i]);
-    o << "\"/>\n<line x1=\"" << left + pw + 10 << "\" y1=\"" << top + 14 + 18 * s << "\" x2=\""
-      << left + pw + 30 << "\" y2=\"" << top + 14 + 18 * s << "\" stroke=\"" << color
-      << "\" stroke-width=\"2\"/>\n<text x=\"" << left + pw + 34 << "\" y=\""
-      << top + 18 + 18 * s << "\">" << EscapeXml(series[s].label) << "</text>\n";
-  }
-  o << "</svg>\n";
-  return o.str();
+  return s;
+}
+
+plot::Figure RecallFigure(std::vector<plot::Series> curves, const std::string& title,
+                          double max_position_m, double angle_per_m) {
+  plot::Figure f;
+  f.title = title;
+  f.x_label = "position threshold (m); angle threshold = " + Num(angle_per_m, 1) +
+              " x position (deg)";
+  f.y_label = "localized queries (%)";
+  f.series = std::move(curves);
+  f.x_min = 0;
+  f.x_max = max_position_m;
+  f.y_min = 0;
+  f.y_max = 100;
+  return f;
 }
 
 }  // namespace locforge::evaluation

@@ -1,7 +1,7 @@
 // Localization scoring as in the paper (section 4): position error of camera
 // centres, geodesic rotation error, recall at (position, angle) thresholds
 // with <= bounds, unlocalized queries counted as failures; tables as
-// Markdown/CSV/LaTeX and a recall curve as SVG.
+// Markdown/CSV/LaTeX and a recall curve (Figure 7) as SVG and PNG.
 #ifndef LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
 #define LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
 
@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "locforge/plot.h"
 #include "locforge/pose.h"
 
 namespace locforge::evaluation {
@@ -50,13 +51,14 @@ std::string ToLatex(const Table& table);  // tabular, special characters escaped
 // Parses ToCsv's output back (quoted fields, doubled quotes).
 Table FromCsv(const std::string& text, const std::string& file_name);
 
-struct CurveSeries {
-  std::string label;
-  std::vector<double> x, y;
-};
-// A line plot as standalone SVG (axes, ticks, legend).
-std::string SvgLinePlot(const std::vector<CurveSeries>& series, const std::string& x_label,
-                        const std::string& y_label, double x_max, double y_max);
+// Figure 7's curve: recall (%) with both thresholds varying together,
+// position p in [0, max_position_m] over `steps` intervals and angle
+// threshold = angle_per_m x p (the paper: 10 deg per metre, 1 deg per 10 cm).
+plot::Series RecallCurve(const std::vector<QueryError>& errors, const std::string& label,
+                         double max_position_m, double angle_per_m = 10, int steps = 100);
+// The curves of one or several methods as a figure (SVG or PNG via plot::WriteFigure).
+plot::Figure RecallFigure(std::vector<plot::Series> curves, const std::string& title,
+                          double max_position_m, double angle_per_m = 10);
 
 // Percentage with one decimal ("62.5").
 std::string Percent(double fraction);

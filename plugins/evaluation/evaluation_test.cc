@@ -50,12 +50,34 @@ TEST(Tables, Writers) {
   EXPECT_THROW(FromCsv("a,b\n1\n", "bad.csv"), InputError);
 }
 
-TEST(Svg, ContainsSeries) {
-  const std::string svg = SvgLinePlot({{"a<b", {0, 1}, {0, 100}}}, "x", "y", 1, 100);
-  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
-  EXPECT_NE(svg.find("a&lt;b"), std::string::npos);
-  EXPECT_NE(svg.find("<polyline"), std::string::npos);
-  EXPECT_NE(svg.find("</svg>"), std::string::npos);
+TEST(Curve, MatchesRecallAtEachThresholdPair) {
+  // Errors (m, deg): (0.05, 0.2) counts from p = 0.05 on (angle 0.5 >= 0.2);
+  // (0.05, 2.95) only from p = 0.3 (angle 3); (0.5, 1) from p = 0.5; one failure.
+  std::vector<QueryError> e(4);
+  e[0] = {"a", "", "", "", true, 0.05, 0.2};
+  e[1] = {"b", "", "", "", true, 0.05, 2.95};
+  e[2] = {"c", "", "", "", true, 0.5, 1.0};
+  e[3] = {"d", "", "", "", false, 0, 0};
+  const plot::Series s = RecallCurve(e, "m", 1.0, 10, 100);
+  ASSERT_EQ(s.x.size(), 101u);
+  EXPECT_EQ(s.label, "m");
+  EXPECT_DOUBLE_EQ(s.y[0], 0);
+  EXPECT_DOUBLE_EQ(s.y[4], 0);     // p = 0.04
+  EXPECT_DOUBLE_EQ(s.y[5], 25);    // p = 0.05
+  EXPECT_DOUBLE_EQ(s.y[29], 25);
+  EXPECT_DOUBLE_EQ(s.y[30], 50);   // p = 0.3, angle 3
+  EXPECT_DOUBLE_EQ(s.y[50], 75);   // p = 0.5
+  EXPECT_DOUBLE_EQ(s.y[100], 75);  // the failure never counts
+  for (size_t i = 0; i < s.x.size(); ++i)
+    EXPECT_DOUBLE_EQ(s.y[i], 100 * Recall(e, {s.x[i], 10 * s.x[i]}));
+  const plot::Figure f = RecallFigure({s}, "t", 1.0);
+  EXPECT_EQ(f.series.size(), 1u);
+  EXPECT_DOUBLE_EQ(f.x_max, 1.0);
+  EXPECT_DOUBLE_EQ(f.y_max, 100);
+  const auto png = plot::RenderPng(f);
+  ASSERT_GT(png.size(), 8u);
+  EXPECT_EQ(std::string(png.begin(), png.begin() + 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  EXPECT_NE(plot::RenderSvg(f).find("<svg"), std::string::npos);
 }
 
 }  // namespace

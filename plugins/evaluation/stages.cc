@@ -14,6 +14,9 @@ namespace {
 
 namespace kp = locforge::kapture;
 
+// Figure 7 of the paper: angle threshold (deg) = 10 x position threshold (m).
+constexpr double kAnglePerMetre = 10;
+
 // "name=regex" list entries.
 std::vector<std::pair<std::string, std::regex>> ParseLabelled(const std::vector<std::string>& items,
                                                               const std::string& param,
@@ -79,7 +82,7 @@ class LocalizationEval : public Stage<EvalOptions> {
             "unlocalized = failure) by camera group and split, recall curve, tables",
             {{"estimates", "kapture.trajectories", "estimated query poses"},
              {"ground_truth", "kapture.dataset", "query kapture with GT trajectories"}},
-            {{"report", "report", "summary.{md,csv,tex}, per_query.csv, curve.svg"}}};
+            {{"report", "report", "summary.{md,csv,tex}, per_query.csv, curve.{csv,svg,png}"}}};
   }
   using Stage::Stage;
 
@@ -142,26 +145,29 @@ class LocalizationEval : public Stage<EvalOptions> {
       per_query.rows.push_back({e.image, e.device, e.group, e.split, e.localized ? "1" : "0",
                                 e.localized ? FormatDouble(e.position_m) : "",
                                 e.localized ? FormatDouble(e.rotation_deg) : ""});
-    std::vector<CurveSeries> curves;
+    // Figure 7: one curve per bucket; curve.csv keeps them for eval/table.
+    std::vector<plot::Series> curves;
+    Table curve_table;
+    curve_table.header = {"group", "split", "position_m", "angle_deg", "recall_percent"};
     for (const auto& [key, list] : buckets) {
-      CurveSeries s;
-      s.label = key.first == "all" && key.second == "all" ? o.method
-                                                          : key.first + "/" + key.second;
-      for (int i = 0; i <= 100; ++i) {
-        const double p = o.curve_max_m * i / 100;
-        s.x.push_back(p);
-        s.y.push_back(100 * Recall(list, {p, 10 * p}));
-      }
-      curves.push_back(s);
+      const std::string label = key.first == "all" && key.second == "all"
+                                    ? o.method
+                                    : key.first + "/" + key.second;
+      curves.push_back(RecallCurve(list, label, o.curve_max_m, kAnglePerMetre));
+      for (size_t i = 0; i < curves.back().x.size(); ++i)
+        curve_table.rows.push_back({key.first, key.second, FormatDouble(curves.back().x[i]),
+                                    FormatDouble(kAnglePerMetre * curves.back().x[i]),
+                                    FormatDouble(curves.back().y[i])});
     }
     const fs::path out = ctx.output_dir();
     WriteFileAtomic(out / "summary.md", "# " + o.method + "\n\n" + ToMarkdown(summary));
     WriteFileAtomic(out / "summary.csv", ToCsv(summary));
     WriteFileAtomic(out / "summary.tex", ToLatex(summary));
     WriteFileAtomic(out / "per_query.csv", ToCsv(per_query));
-    WriteFileAtomic(out / "curve.svg",
-                    SvgLinePlot(curves, "position threshold (m); angle threshold = 10 x m (deg)",
-                                "localized queries (%)", o.curve_max_m, 100));
+    WriteFileAtomic(out / "curve.csv", ToCsv(curve_table));
+    const plot::Figure figure = RecallFigure(curves, o.method, o.curve_max_m, kAnglePerMetre);
+    plot::WriteFigure(figure, (out / "curve.svg").string());
+    plot::WriteFigure(figure, (out / "curve.png").string());
     ctx.Info(ToMarkdown(summary));
   }
 };
@@ -181,7 +187,7 @@ class CombinedTable : public Stage<TableOptions> {
             "Combines eval/localization reports into one table (rows: methods; columns: "
             "group/split recalls as a / b / c), like the paper's Table 3",
             {{"reports", "report", "eval/localization reports", LF_PORT_MULTIPLE}},
-            {{"table", "report", "table.md, table.csv, table.tex"}}};
+            {{"table", "report", "table.{md,csv,tex}; curves.{svg,png}: every method's recall curve"}}};
   }
   using Stage::Stage;
 
@@ -206,6 +212,25 @@ class CombinedTable : public Stage<TableOptions> {
         cells[row[0]][column] = cell;
       }
     }
+    // Figure 7 across methods: each report's all/all curve.
+    std::vector<plot::Series> curves;
+    double max_m = 0;
+    for (const fs::path& report : ctx.Inputs("reports")) {
+      const fs::path file = report / "curve.csv";
+      if (!fs::exists(file)) continue;
+      const Table c = FromCsv(ReadFile(file), file.string());
+      const Table summary = FromCsv(ReadFile(report / "summary.csv"), "summary.csv");
+      plot::Series s;
+      s.label = summary.rows.empty() ? report.filename().string() : summary.rows[0][0];
+      for (const auto& row : c.rows)
+        if (row.size() == 5 && row[0] == "all" && row[1] == "all") {
+          s.x.push_back(std::stod(row[2]));
+          s.y.push_back(std::stod(row[4]));
+        }
+      if (s.x.empty()) continue;
+      max_m = std::max(max_m, s.x.back());
+      curves.push_back(std::move(s));
+    }
     Table table;
     table.header = {"method"};
     for (const auto& c : columns) table.header.push_back(c == "all/all" ? "all" : c);
@@ -224,6 +249,11 @@ class CombinedTable : public Stage<TableOptions> {
                                           ToMarkdown(table));
     WriteFileAtomic(out / "table.csv", ToCsv(table));
     WriteFileAtomic(out / "table.tex", ToLatex(table));
+    if (!curves.empty()) {
+      const plot::Figure figure = RecallFigure(curves, options().title, max_m, kAnglePerMetre);
+      plot::WriteFigure(figure, (out / "curves.svg").string());
+      plot::WriteFigure(figure, (out / "curves.png").string());
+    }
     ctx.Info(ToMarkdown(table));
   }
 };
@@ -231,5 +261,5 @@ class CombinedTable : public Stage<TableOptions> {
 }  // namespace
 }  // namespace locforge::evaluation
 
-LOCFORGE_PLUGIN("evaluation", "1.0.0", "Localization evaluation and tables",
+LOCFORGE_PLUGIN("evaluation", "1.1.0", "Localization evaluation and tables",
                 locforge::evaluation::LocalizationEval, locforge::evaluation::CombinedTable)

@@ -47,7 +47,8 @@ std::vector<std::string> CameraImages(const fs::path& dataset) {
 }
 
 cv::Mat ReadGray(const fs::path& dataset, const std::string& image) {
-  const fs::path file = SafeJoin(dataset / k::layout::kRecordsData, image, "records_camera.txt");
+  const fs::path file =
+      k::Kapture(dataset).RecordDataPath(image, k::layout::RecordsFile(k::kSensorCamera));
   cv::Mat gray = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
   if (gray.empty())
     throw InputError(k::layout::RecordsFile("camera"), 0, "image_path",
