@@ -96,7 +96,7 @@ struct SplineBAOptions {
   // metric scale comes from the fixed CAD translations). 0 for either sigma
   // disables it; the first control pose of trajectory 0 is then held fixed.
   double trajectory_prior_sigma_rotation_rad = 0.02;  // ~1.1 deg
-  double trajectory_prior_sigma_translation_m = 0.2;
+  double trajectory_prior_sigma_translation_m = 0.05;
   // Gauge without spline priors (plain BA): the pose of the first image with
   // an observation is held fixed and, for the scale, the largest coordinate of
   // the translation of the image farthest from it (as COLMAP fixes one

@@ -1,5 +1,6 @@
 #include "synthetic.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -163,6 +164,22 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
     for (int i = 0; i < ny; ++i)
       candidates.emplace_back(side ? X : -X, (2 * uniform(rng) - 1) * Y, H * uniform(rng));
   }
+  // Floor and ceiling (sparser), and pillars (1 m square, full height) inside
+  // and outside the ellipse: depth variety that conditions the calibration.
+  const int nf = static_cast<int>(0.25 * o.points_per_m2 * 4 * X * Y);
+  for (int i = 0; i < nf; ++i)
+    candidates.emplace_back((2 * uniform(rng) - 1) * X, (2 * uniform(rng) - 1) * Y, i % 2 ? 0.0 : H);
+  for (int p = 0; p < 12; ++p) {
+    const double ang = 2 * M_PI * p / 12, rad = p % 2 ? 0.6 : 1.25;
+    const Eigen::Vector2d c(rad * a * std::cos(ang), rad * b * std::sin(ang));
+    for (int i = 0; i < static_cast<int>(o.points_per_m2 * 4 * H); ++i) {
+      const double s = 2 * uniform(rng) - 1;
+      const int face = i % 4;
+      const Eigen::Vector2d off = face == 0 ? Eigen::Vector2d(0.5, 0.5 * s) : face == 1 ? Eigen::Vector2d(-0.5, 0.5 * s)
+                                  : face == 2 ? Eigen::Vector2d(0.5 * s, 0.5) : Eigen::Vector2d(0.5 * s, -0.5);
+      candidates.emplace_back(c.x() + off.x(), c.y() + off.y(), H * uniform(rng));
+    }
+  }
   for (const Eigen::Vector3d& P : candidates) {
     std::vector<BAProblem::Observation> obs;
     for (size_t i = 0; i < truth.images.size(); ++i) {
@@ -192,9 +209,28 @@ SceneErrors CompareToTruth(const BAProblem& est, const BAProblem& truth) {
     const double r = RotationAngleDeg(est.images[i].T_world_camera.q, truth.images[i].T_world_camera.q);
     sr += r * r;
   }
-  if (!truth.images.empty()) {
-    e.position_rms_m = std::sqrt(sp / truth.images.size());
-    e.rotation_rms_deg = std::sqrt(sr / truth.images.size());
+  const size_t ni = truth.images.size();
+  if (ni) {
+    e.position_rms_m = std::sqrt(sp / ni);
+    e.rotation_rms_deg = std::sqrt(sr / ni);
+  }
+  if (ni >= 3) {
+    Eigen::Matrix3Xd src(3, ni), dst(3, ni);
+    for (size_t i = 0; i < ni; ++i) {
+      src.col(i) = est.images[i].T_world_camera.t;
+      dst.col(i) = truth.images[i].T_world_camera.t;
+    }
+    const Eigen::Matrix4d A = Eigen::umeyama(src, dst, false);
+    const Pose align = Pose::FromMatrix(A);
+    double ap = 0, ar = 0;
+    for (size_t i = 0; i < ni; ++i) {
+      const Pose aligned = align * est.images[i].T_world_camera;
+      ap += (aligned.t - truth.images[i].T_world_camera.t).squaredNorm();
+      const double r = RotationAngleDeg(aligned.q, truth.images[i].T_world_camera.q);
+      ar += r * r;
+    }
+    e.aligned_position_rms_m = std::sqrt(ap / ni);
+    e.aligned_rotation_rms_deg = std::sqrt(ar / ni);
   }
   for (size_t s = 0; s < truth.sensors.size(); ++s) {
     const Camera& a = est.sensors[s].camera;

@@ -1,6 +1,6 @@
 // A synthetic spline-BA problem with a known answer (for the tests and the
 // benchmark): a platform drives arcs of an ellipse in a rectangular room
-// whose walls carry 3D points; cameras on the platform with their own
+// whose walls, floor, ceiling and pillars carry 3D points; cameras on the platform with their own
 // models, rates and clocks observe them with pixel noise. The initial state
 // is what the LiDAR half would hand over: noisy platform trajectory,
 // perturbed intrinsics and rotational extrinsics, perturbed points, image
@@ -49,8 +49,13 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& options);
 
 // Errors of an adjusted problem against the truth.
 struct SceneErrors {
-  double position_rms_m = 0;    // camera centres
+  double position_rms_m = 0;    // camera centres (T_world_camera.t), in the truth's world frame
   double rotation_rms_deg = 0;  // camera orientations
+  // The same after the rigid (SE(3), no scale) alignment of the estimated
+  // camera centres to the true ones (Umeyama): the error without the gauge,
+  // which the BA can only take from the LiDAR trajectory.
+  double aligned_position_rms_m = 0;
+  double aligned_rotation_rms_deg = 0;
   double focal_max_rel = 0;     // max over sensors of |f - f_true| / f_true (fx and fy)
   double extrinsic_rotation_max_deg = 0;  // max over sensors of the T_body_camera rotation error
   double trajectory_position_rms_m = 0;   // trajectory samples vs true body poses
