@@ -60,17 +60,21 @@ inline ceres::CostFunction* CreateReprojectionError(CameraModelId model, const E
 }
 
 // Spline pose error of an image (section 3.2):
-//   e_i = sqrt_info * Log( T_wc_i^-1 * T_wb(t_i) * T_bc ),
-// T_wb(t_i) from the 4 control poses of t_i's segment at fraction u, T_bc =
-// (q_bc parameter, t_bc constant). sqrt_info = diag(1/sigma_r x3, 1/sigma_t x3).
+//   e_i = sqrt_info * Log( T_wc_i^-1 * T_wb(t_i + d_s) * T_bc ),
+// T_wb from the 4 control poses of t_i's segment at fraction
+// u = u_i + d_s / dt, where u_i is the fraction of t_i and d_s the time
+// offset of the image's sensor (a 1-parameter block, constant unless
+// estimated), T_bc = (q_bc parameter, t_bc constant).
+// sqrt_info = diag(1/sigma_r x3, 1/sigma_t x3).
 struct SplinePoseError {
-  SplinePoseError(double u, const Eigen::Vector3d& t_bc, const Eigen::Matrix<double, 6, 1>& sqrt_info)
-      : u(u), t_bc(t_bc), sqrt_info(sqrt_info) {}
+  SplinePoseError(double u, double dt, const Eigen::Vector3d& t_bc, const Eigen::Matrix<double, 6, 1>& sqrt_info)
+      : u(u), dt(dt), t_bc(t_bc), sqrt_info(sqrt_info) {}
 
   template <typename T>
   bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* q_wc,
-                  const T* t_wc, const T* q_bc, T* residual) const {
-    const PoseT<T> T_wb = EvaluateSegment(c0, c1, c2, c3, u);
+                  const T* t_wc, const T* q_bc, const T* time_offset, T* residual) const {
+    const T u_offset = T(u) + time_offset[0] / T(dt);
+    const PoseT<T> T_wb = EvaluateSegment(c0, c1, c2, c3, u_offset);
     PoseT<T> T_bc;
     T_bc.q = Eigen::Map<const Eigen::Quaternion<T>>(q_bc);
     T_bc.t = t_bc.cast<T>();
@@ -82,12 +86,12 @@ struct SplinePoseError {
     return true;
   }
 
-  static ceres::CostFunction* Create(double u, const Eigen::Vector3d& t_bc,
+  static ceres::CostFunction* Create(double u, double dt, const Eigen::Vector3d& t_bc,
                                      const Eigen::Matrix<double, 6, 1>& sqrt_info) {
-    return new ceres::AutoDiffCostFunction<SplinePoseError, 6, 7, 7, 7, 7, 4, 3, 4>(
-        new SplinePoseError(u, t_bc, sqrt_info));
+    return new ceres::AutoDiffCostFunction<SplinePoseError, 6, 7, 7, 7, 7, 4, 3, 4, 1>(
+        new SplinePoseError(u, dt, t_bc, sqrt_info));
   }
-  double u;
+  double u, dt;
   Eigen::Vector3d t_bc;
   Eigen::Matrix<double, 6, 1> sqrt_info;
 };

@@ -158,17 +158,20 @@ Eigen::Matrix<T, 6, 1> LogSE3T(const PoseT<T>& p) {
 }
 
 // Cumulative basis Btilde(u) (eq. 6); Btilde_0 = 1 always.
-inline Eigen::Vector4d CumulativeBasis(double u) {
-  const double u2 = u * u, u3 = u2 * u;
-  return Eigen::Vector4d(1.0, (5.0 + 3.0 * u - 3.0 * u2 + u3) / 6.0,
-                         (1.0 + 3.0 * u + 3.0 * u2 - 2.0 * u3) / 6.0, u3 / 6.0);
+template <typename U>
+Eigen::Matrix<U, 4, 1> CumulativeBasis(const U& u) {
+  const U u2 = u * u, u3 = u2 * u;
+  return Eigen::Matrix<U, 4, 1>(U(1.0), (U(5.0) + U(3.0) * u - U(3.0) * u2 + u3) / U(6.0),
+                                (U(1.0) + U(3.0) * u + U(3.0) * u2 - U(2.0) * u3) / U(6.0), u3 / U(6.0));
 }
 
 // Spline value (eq. 4) from the 4 control poses of the segment, each a
-// 7-vector as above, at the segment fraction u in [0, 1].
-template <typename T>
-PoseT<T> EvaluateSegment(const T* c0, const T* c1, const T* c2, const T* c3, double u) {
-  const Eigen::Vector4d b = CumulativeBasis(u);
+// 7-vector as above, at the segment fraction u in [0, 1] (u may be a Jet:
+// time offsets are estimated through it; slightly outside [0, 1] the
+// segment's polynomial extends smoothly).
+template <typename T, typename U = double>
+PoseT<T> EvaluateSegment(const T* c0, const T* c1, const T* c2, const T* c3, const U& u) {
+  const Eigen::Matrix<U, 4, 1> b = CumulativeBasis(u);
   const PoseT<T> P[4] = {PoseT<T>::FromArray(c0), PoseT<T>::FromArray(c1),
                          PoseT<T>::FromArray(c2), PoseT<T>::FromArray(c3)};
   PoseT<T> result = P[0];

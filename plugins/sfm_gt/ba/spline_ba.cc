@@ -28,6 +28,8 @@ std::string SplineBAOptions::CheckMessage() const {
   if (!(function_tolerance >= 0) || !(gradient_tolerance >= 0) || !(parameter_tolerance >= 0))
     return "tolerances must be >= 0";
   if (num_threads < 1) return "num_threads must be >= 1";
+  if (!positive(max_time_offset_s) || max_time_offset_s >= knot_spacing_s)
+    return "max_time_offset_s must be in (0, knot_spacing_s)";
   if (linear_solver != "auto" && linear_solver != "sparse_schur" && linear_solver != "iterative_schur")
     return "linear_solver must be auto, sparse_schur or iterative_schur (got '" + linear_solver + "')";
   return "";
@@ -81,6 +83,7 @@ struct Parameters {
   std::vector<std::array<double, 3>> points;
   std::vector<std::vector<double>> intrinsics;
   std::vector<std::array<double, 4>> q_body_camera;
+  std::vector<double> time_offsets;  // per sensor, seconds
   std::vector<SE3Spline> splines;  // per trajectory (empty control: none)
   std::vector<std::vector<std::array<double, 7>>> controls;
 };
@@ -96,6 +99,7 @@ void CopyIn(const BAProblem& p, Parameters* x) {
     x->intrinsics.push_back(s.camera.params);
     const Eigen::Quaterniond& q = s.T_body_camera.q;
     x->q_body_camera.push_back({q.x(), q.y(), q.z(), q.w()});
+    x->time_offsets.push_back(s.time_offset_s);
   }
 }
 
@@ -138,6 +142,7 @@ void CopyOut(const Parameters& x, bool splines, BAProblem* p, SplineBAResult* re
     p->sensors[s].camera.params = x.intrinsics[s];
     const auto& q = x.q_body_camera[s];
     p->sensors[s].T_body_camera.q = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized();
+    p->sensors[s].time_offset_s = x.time_offsets[s];
   }
   if (!splines) return;
   result->splines = x.splines;
@@ -237,12 +242,15 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
       if (!image_observed[i] || im.trajectory < 0) continue;
       int s;
       double u;
-      x.splines[im.trajectory].Locate(im.time_s, &s, &u);
+      const SE3Spline& spline = x.splines[im.trajectory];
+      spline.Locate(im.time_s + x.time_offsets[im.sensor], &s, &u);
+      // u relative to the segment at time_s (the offset is added inside).
+      u = (im.time_s - spline.t0) / spline.dt - s;
       auto& c = x.controls[im.trajectory];
       ceres_problem.AddResidualBlock(
-          SplinePoseError::Create(u, problem->sensors[im.sensor].T_body_camera.t, w), nullptr, c[s].data(),
+          SplinePoseError::Create(u, spline.dt, problem->sensors[im.sensor].T_body_camera.t, w), nullptr, c[s].data(),
           c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), x.image_q[i].data(), x.image_t[i].data(),
-          x.q_body_camera[im.sensor].data());
+          x.q_body_camera[im.sensor].data(), &x.time_offsets[im.sensor]);
       sensor_in_prior[im.sensor] = true;
       ++result.num_prior_residuals;
     }
@@ -320,6 +328,14 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
     if (sensor_in_prior[s]) {
       ceres_problem.SetManifold(q, &quaternion);
       if (!(options.calibrate_rotations && sensor.calibrate_rotation)) ceres_problem.SetParameterBlockConstant(q);
+      double* d = &x.time_offsets[s];
+      if (options.estimate_time_offsets) {
+        ceres_problem.SetParameterLowerBound(d, 0, -options.max_time_offset_s);
+        ceres_problem.SetParameterUpperBound(d, 0, options.max_time_offset_s);
+        x.time_offsets[s] = std::clamp(x.time_offsets[s], -options.max_time_offset_s, options.max_time_offset_s);
+      } else {
+        ceres_problem.SetParameterBlockConstant(d);
+      }
     }
   }
   if (!options.refine_points)

@@ -46,6 +46,10 @@ struct BAProblem {
     Pose T_body_camera;                // body-from-camera; translation is never changed
     bool calibrate_intrinsics = true;  // and SplineBAOptions::calibrate_intrinsics
     bool calibrate_rotation = true;    // and SplineBAOptions::calibrate_rotations
+    // Clock offset of the sensor's timestamps: its images are tied to the
+    // spline at time_s + time_offset_s. Estimated (and written back) with
+    // SplineBAOptions::estimate_time_offsets, else used as given.
+    double time_offset_s = 0;
   };
   struct Image {
     int trajectory = -1;  // index into trajectories (-1: no spline prior for this image)
@@ -91,6 +95,12 @@ struct SplineBAOptions {
   // and capture jitter (a few ms of motion).
   double prior_sigma_rotation_rad = 0.002;  // ~0.11 deg
   double prior_sigma_translation_m = 0.01;
+  // Estimate one clock offset per sensor (Sensor::time_offset_s), bounded
+  // by +-max_time_offset_s (< knot_spacing_s). Off by default: the paper
+  // handles asynchronous cameras through each image's own timestamp only;
+  // constant per-camera offsets then bias the extrinsic rotations (README).
+  bool estimate_time_offsets = false;
+  double max_time_offset_s = 0.05;
   // Gauge with spline priors: a weak prior of every spline to its initial
   // (LiDAR) samples keeps the solution in the LiDAR map frame (6 DoF; the
   // metric scale comes from the fixed CAD translations). 0 for either sigma

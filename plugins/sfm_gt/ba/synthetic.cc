@@ -186,7 +186,7 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
       const auto& im = truth.images[i];
       const Camera& cam = truth.sensors[im.sensor].camera;
       const Eigen::Vector3d pc = im.T_world_camera.Inverse() * P;
-      if (pc.z() < 0.5 || pc.z() > 40 || pc.head<2>().norm() > 1.5 * pc.z()) continue;
+      if (pc.z() < 0.5 || pc.z() > o.max_depth_m || pc.head<2>().norm() > 1.5 * pc.z()) continue;
       const Eigen::Vector2d xy = cam.Project(pc);
       if (xy.x() < 0 || xy.y() < 0 || xy.x() > cam.width || xy.y() > cam.height) continue;
       const Eigen::Vector2d noise(normal(rng), normal(rng));

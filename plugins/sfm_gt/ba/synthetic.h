@@ -27,6 +27,7 @@ struct SyntheticOptions {
   double points_per_m2 = 2.0;           // wall point density
   double pixel_noise_px = 0.5;
   int min_track_length = 2;
+  double max_depth_m = 40;              // observations only of points closer than this
   // LiDAR-like trajectory noise at 10 Hz: white + a smooth (sinusoidal) part.
   double lidar_white_m = 0.02, lidar_white_deg = 0.3;
   double lidar_smooth_m = 0.02, lidar_smooth_deg = 0.3;
