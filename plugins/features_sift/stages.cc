@@ -53,23 +53,20 @@ class SiftStage : public PerItemStage<SiftOptions> {
   }
 
   void ProcessItem(RunContext& ctx, const std::string& image) override {
-    const fs::path root = ctx.Input("images");
-    const fs::path file = SafeJoin(root / k::layout::kRecordsData, image, "records_camera.txt");
+    const fs::path file =
+        k::Kapture(ctx.Input("images")).RecordDataPath(image, k::layout::RecordsFile("camera"));
     const cv::Mat gray = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
     if (gray.empty())
       throw InputError(k::layout::RecordsFile("camera"), 0, "image_path",
                        "cannot read image '" + image + "' at " + file.string());
     const SiftFeatures f = ExtractSift(gray, options());
-    const fs::path out = ctx.output_dir();
-    k::WriteImageFeatures(out, options().type, KeypointsInfo(), image,
-                          k::FeatureArray::From(k::DType::kFloat32, 4, f.keypoints));
     const k::FeatureInfo dinfo = DescriptorsInfo(options());
-    if (dinfo.dtype == k::DType::kUint8)
-      k::WriteImageFeatures(out, options().type, dinfo, image,
-                            k::FeatureArray::From(k::DType::kUint8, 128, DescriptorsToUint8(f.descriptors)));
-    else
-      k::WriteImageFeatures(out, options().type, dinfo, image,
-                            k::FeatureArray::From(k::DType::kFloat32, 128, f.descriptors));
+    k::WriteImageLocalFeatures(
+        ctx.output_dir(), options().type, image, KeypointsInfo(),
+        k::FeatureArray::From(k::DType::kFloat32, 4, f.keypoints), dinfo,
+        dinfo.dtype == k::DType::kUint8
+            ? k::FeatureArray::From(k::DType::kUint8, 128, DescriptorsToUint8(f.descriptors))
+            : k::FeatureArray::From(k::DType::kFloat32, 128, f.descriptors));
   }
 
   void Finalize(RunContext& ctx) override {

@@ -74,11 +74,10 @@ class R2d2Stage : public PerItemStage<R2d2Options> {
     std::snprintf(line, sizeof line, "%d keypoints, network %.3f s over %d scales", f.count(),
                   f.network_seconds, f.scales);
     ctx.Debug(image + ": " + line);
-    const fs::path out = ctx.output_dir();
-    k::WriteImageFeatures(out, options().type, KeypointsInfo(), image,
-                          k::FeatureArray::From(k::DType::kFloat32, 3, f.keypoints));
-    k::WriteImageFeatures(out, options().type, DescriptorsInfo(options()), image,
-                          k::FeatureArray::From(k::DType::kFloat32, 128, f.descriptors));
+    k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image, KeypointsInfo(),
+                               k::FeatureArray::From(k::DType::kFloat32, 3, f.keypoints),
+                               DescriptorsInfo(options()),
+                               k::FeatureArray::From(k::DType::kFloat32, 128, f.descriptors));
   }
 
   void Finalize(RunContext& ctx) override {
@@ -123,12 +122,11 @@ class D2netStage : public PerItemStage<D2netOptions> {
                   f.network_seconds, f.levels);
     ctx.Debug(image + ": " + line);
     const int channels = f.channels > 0 ? f.channels : ProbeChannels();
-    const fs::path out = ctx.output_dir();
-    k::WriteImageFeatures(out, options().type, D2netInfo(k::FeatureKind::kKeypoints, 3, options().type),
-                          image, k::FeatureArray::From(k::DType::kFloat32, 3, f.keypoints));
-    k::WriteImageFeatures(out, options().type,
-                          D2netInfo(k::FeatureKind::kDescriptors, channels, options().type), image,
-                          k::FeatureArray::From(k::DType::kFloat32, channels, f.descriptors));
+    k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image,
+                               D2netInfo(k::FeatureKind::kKeypoints, 3, options().type),
+                               k::FeatureArray::From(k::DType::kFloat32, 3, f.keypoints),
+                               D2netInfo(k::FeatureKind::kDescriptors, channels, options().type),
+                               k::FeatureArray::From(k::DType::kFloat32, channels, f.descriptors));
     std::lock_guard<std::mutex> lock(mutex_);
     channels_ = channels;
   }

@@ -365,6 +365,18 @@ void WriteImageFeatures(const fs::path& root, const std::string& type, const Fea
   WriteFeatureFile(FeatureFilePath(root, info.kind, type, image), array);
 }
 
+void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
+                             const FeatureInfo& keypoints_info, const FeatureArray& keypoints,
+                             const FeatureInfo& descriptors_info, const FeatureArray& descriptors) {
+  if (keypoints_info.kind != FeatureKind::kKeypoints || descriptors_info.kind != FeatureKind::kDescriptors)
+    throw Error("WriteImageLocalFeatures: expected a keypoints info and a descriptors info");
+  if (keypoints.rows != descriptors.rows)
+    throw Error("features for " + image + ": " + std::to_string(keypoints.rows) + " keypoints but " +
+                std::to_string(descriptors.rows) + " descriptors");
+  WriteImageFeatures(root, type, keypoints_info, image, keypoints);
+  WriteImageFeatures(root, type, descriptors_info, image, descriptors);
+}
+
 void WriteMatches(const fs::path& root, const std::string& keypoints_type,
                   const std::string& image1, const std::string& image2,
                   const std::vector<Match>& matches) {

@@ -169,6 +169,12 @@ void WriteFeatureSetInfo(const fs::path& root, const std::string& type, const Fe
 // and dsize against `info`.
 void WriteImageFeatures(const fs::path& root, const std::string& type, const FeatureInfo& info,
                         const std::string& image, const FeatureArray& array);
+// Writes one image's local features: keypoints then descriptors, each file
+// atomically, after checking both arrays against their infos and that they
+// have the same number of rows (the per-image output of feature extractors).
+void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
+                             const FeatureInfo& keypoints_info, const FeatureArray& keypoints,
+                             const FeatureInfo& descriptors_info, const FeatureArray& descriptors);
 // Writes the matches of a pair in the toolbox's order: stored under the
 // smaller image name, index columns swapped when image2 < image1.
 void WriteMatches(const fs::path& root, const std::string& keypoints_type,
