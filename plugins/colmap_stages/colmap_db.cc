@@ -96,4 +96,20 @@ void AddMapperOption(std::vector<std::string>* args, const std::string& name, do
   args->push_back(FormatDouble(value));
 }
 
+void AddFixedIntrinsics(std::vector<std::string>* args) {
+  for (const char* name : {"ba_refine_focal_length", "ba_refine_principal_point",
+                           "ba_refine_extra_params"})
+    AddMapperOption(args, name, 0);
+}
+
+void MapperParams::AddTo(std::vector<std::string>* args) const {
+  AddMapperOption(args, "min_num_matches", min_num_matches);
+  AddMapperOption(args, "init_min_num_inliers", init_min_num_inliers);
+  AddMapperOption(args, "abs_pose_min_num_inliers", abs_pose_min_num_inliers);
+  AddMapperOption(args, "abs_pose_min_inlier_ratio", abs_pose_min_inlier_ratio);
+  AddMapperOption(args, "ba_local_max_num_iterations", ba_local_max_num_iterations);
+  AddMapperOption(args, "abs_pose_max_error", abs_pose_max_error);
+  AddMapperOption(args, "filter_max_reproj_error", filter_max_reproj_error);
+}
+
 }  // namespace locforge::colmap_stages

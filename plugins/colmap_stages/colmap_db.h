@@ -38,6 +38,26 @@ int64_t AddMatches(const kapture::Kapture& matches, const std::string& keypoints
 // "--Mapper.NAME VALUE" pairs.
 void AddMapperOption(std::vector<std::string>* args, const std::string& name, double value);
 
+// Intrinsics stay fixed in every tool: --Mapper.ba_refine_{focal_length,
+// principal_point,extra_params} 0.
+void AddFixedIntrinsics(std::vector<std::string>* args);
+
+// COLMAP 3.8 Mapper options in the order of the paper's supplementary table.
+struct MapperParams {
+  int min_num_matches;
+  int init_min_num_inliers;
+  int abs_pose_min_num_inliers;
+  double abs_pose_min_inlier_ratio;
+  int ba_local_max_num_iterations;
+  double abs_pose_max_error;
+  double filter_max_reproj_error;
+  void AddTo(std::vector<std::string>* args) const;
+};
+// The paper's values: point_triangulator (mapping) and image_registrator
+// (localization); the stages' defaults and the vocab-tree pipeline use them.
+inline constexpr MapperParams kPaperTriangulator{15, 100, 30, 0.25, 25, 12, 4};
+inline constexpr MapperParams kPaperRegistrator{4, 4, 4, 0.05, 50, 20, 12};
+
 }  // namespace locforge::colmap_stages
 
 #endif  // LOCFORGE_PLUGINS_COLMAP_STAGES_COLMAP_DB_H_

@@ -18,34 +18,6 @@ namespace {
 
 namespace kp = locforge::kapture;
 
-// Intrinsics and extrinsics stay fixed in both tools.
-void AddFixedIntrinsics(std::vector<std::string>* args) {
-  for (const char* name : {"ba_refine_focal_length", "ba_refine_principal_point",
-                           "ba_refine_extra_params"})
-    AddMapperOption(args, name, 0);
-}
-
-// COLMAP 3.8 Mapper options shared by both stages (the paper's supplementary
-// table gives triangulator and registrator values in this order).
-struct MapperParams {
-  int min_num_matches;
-  int init_min_num_inliers;
-  int abs_pose_min_num_inliers;
-  double abs_pose_min_inlier_ratio;
-  int ba_local_max_num_iterations;
-  double abs_pose_max_error;
-  double filter_max_reproj_error;
-  void AddTo(std::vector<std::string>* args) const {
-    AddMapperOption(args, "min_num_matches", min_num_matches);
-    AddMapperOption(args, "init_min_num_inliers", init_min_num_inliers);
-    AddMapperOption(args, "abs_pose_min_num_inliers", abs_pose_min_num_inliers);
-    AddMapperOption(args, "abs_pose_min_inlier_ratio", abs_pose_min_inlier_ratio);
-    AddMapperOption(args, "ba_local_max_num_iterations", ba_local_max_num_iterations);
-    AddMapperOption(args, "abs_pose_max_error", abs_pose_max_error);
-    AddMapperOption(args, "filter_max_reproj_error", filter_max_reproj_error);
-  }
-};
-
 #define LF_DECLARE_MAPPER(O)                                                                    \
   s.Add("min_num_matches", &O::min_num_matches, "Mapper.min_num_matches").Min(1);              \
   s.Add("init_min_num_inliers", &O::init_min_num_inliers, "Mapper.init_min_num_inliers").Min(1); \
@@ -62,13 +34,13 @@ struct MapperParams {
   s.Add("timeout_s", &O::timeout_s, "kill colmap after this many seconds (0: never)").Min(0).NoCacheKey();
 
 struct TriangulatorOptions {
-  int min_num_matches = 15;
-  int init_min_num_inliers = 100;
-  int abs_pose_min_num_inliers = 30;
-  double abs_pose_min_inlier_ratio = 0.25;
-  int ba_local_max_num_iterations = 25;
-  double abs_pose_max_error = 12;
-  double filter_max_reproj_error = 4;
+  int min_num_matches = kPaperTriangulator.min_num_matches;
+  int init_min_num_inliers = kPaperTriangulator.init_min_num_inliers;
+  int abs_pose_min_num_inliers = kPaperTriangulator.abs_pose_min_num_inliers;
+  double abs_pose_min_inlier_ratio = kPaperTriangulator.abs_pose_min_inlier_ratio;
+  int ba_local_max_num_iterations = kPaperTriangulator.ba_local_max_num_iterations;
+  double abs_pose_max_error = kPaperTriangulator.abs_pose_max_error;
+  double filter_max_reproj_error = kPaperTriangulator.filter_max_reproj_error;
   std::string keypoints_type;
   double timeout_s = 0;
   static void Declare(ParamSchema<TriangulatorOptions>& s) { LF_DECLARE_MAPPER(TriangulatorOptions) }
@@ -80,13 +52,13 @@ struct TriangulatorOptions {
 };
 
 struct RegistratorOptions {
-  int min_num_matches = 4;
-  int init_min_num_inliers = 4;
-  int abs_pose_min_num_inliers = 4;
-  double abs_pose_min_inlier_ratio = 0.05;
-  int ba_local_max_num_iterations = 50;
-  double abs_pose_max_error = 20;
-  double filter_max_reproj_error = 12;
+  int min_num_matches = kPaperRegistrator.min_num_matches;
+  int init_min_num_inliers = kPaperRegistrator.init_min_num_inliers;
+  int abs_pose_min_num_inliers = kPaperRegistrator.abs_pose_min_num_inliers;
+  double abs_pose_min_inlier_ratio = kPaperRegistrator.abs_pose_min_inlier_ratio;
+  int ba_local_max_num_iterations = kPaperRegistrator.ba_local_max_num_iterations;
+  double abs_pose_max_error = kPaperRegistrator.abs_pose_max_error;
+  double filter_max_reproj_error = kPaperRegistrator.filter_max_reproj_error;
   std::string keypoints_type;
   double timeout_s = 0;
   static void Declare(ParamSchema<RegistratorOptions>& s) { LF_DECLARE_MAPPER(RegistratorOptions) }

@@ -13,17 +13,13 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/params.h"
 #include "locforge/plugin.h"
+#include "colmap_db.h"
 #include "vocab_tree.h"
 
 namespace locforge::colmap_stages {
 namespace {
 
 namespace kp = locforge::kapture;
-
-void Mapper(std::vector<std::string>* a, const std::string& name, double v) {
-  a->push_back("--Mapper." + name);
-  a->push_back(FormatDouble(v));
-}
 
 // Adds cameras (from sensors.txt, so intrinsics are the dataset's) and
 // images (no keypoints yet); feature_extractor then fills the features.
@@ -135,15 +131,8 @@ void VocabTreeStage::Run(RunContext& ctx) {
   a = {"point_triangulator", "--database_path", map_db.string(), "--input_path",
        (out / "input_model").string(), "--output_path", (out / "map_model").string(),
        "--clear_points", "1", "--image_path", (map.root() / kp::layout::kRecordsData).string()};
-  for (const char* n : {"ba_refine_focal_length", "ba_refine_principal_point", "ba_refine_extra_params"})
-    Mapper(&a, n, 0);
-  Mapper(&a, "min_num_matches", 15);
-  Mapper(&a, "init_min_num_inliers", 100);
-  Mapper(&a, "abs_pose_min_num_inliers", 30);
-  Mapper(&a, "abs_pose_min_inlier_ratio", 0.25);
-  Mapper(&a, "ba_local_max_num_iterations", 25);
-  Mapper(&a, "abs_pose_max_error", 12);
-  Mapper(&a, "filter_max_reproj_error", 4);
+  AddFixedIntrinsics(&a);
+  kPaperTriangulator.AddTo(&a);
   Run(ctx, a, "point_triangulator");
   // Queries.
   const fs::path db_path = out / "database.db";
@@ -161,15 +150,8 @@ void VocabTreeStage::Run(RunContext& ctx) {
   fs::create_directories(out / "model");
   a = {"image_registrator", "--database_path", db_path.string(), "--input_path",
        (out / "map_model").string(), "--output_path", (out / "model").string()};
-  for (const char* n : {"ba_refine_focal_length", "ba_refine_principal_point", "ba_refine_extra_params"})
-    Mapper(&a, n, 0);
-  Mapper(&a, "min_num_matches", 4);
-  Mapper(&a, "init_min_num_inliers", 4);
-  Mapper(&a, "abs_pose_min_num_inliers", 4);
-  Mapper(&a, "abs_pose_min_inlier_ratio", 0.05);
-  Mapper(&a, "ba_local_max_num_iterations", 50);
-  Mapper(&a, "abs_pose_max_error", 20);
-  Mapper(&a, "filter_max_reproj_error", 12);
+  AddFixedIntrinsics(&a);
+  kPaperRegistrator.AddTo(&a);
   Run(ctx, a, "image_registrator");
   const colmap::Reconstruction model = colmap::ReadModel(out / "model");
   kp::Trajectories trajectories;

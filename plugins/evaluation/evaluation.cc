@@ -203,8 +203,7 @@ plot::Figure RecallFigure(std::vector<plot::Series> curves, const std::string& t
                           double max_position_m, double angle_per_m) {
   plot::Figure f;
   f.title = title;
-  f.x_label = "position threshold (m); angle threshold = " + Num(angle_per_m, 1) +
-              " x position (deg)";
+  f.x_label = "position threshold (m), angle = " + Num(angle_per_m, 0) + " x m (deg)";
   f.y_label = "localized queries (%)";
   f.series = std::move(curves);
   f.x_min = 0;
