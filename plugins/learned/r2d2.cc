@@ -147,6 +147,13 @@ R2d2Features ExtractR2d2(const cv::Mat& rgb, const R2d2Options& o) {
     image = next;
   }
 
+  if (f.scales == 0)
+    throw InputError(o.model, 0, "min_size/max_size",
+                     "no pyramid level (scales 2^(-k/4)) of this " + std::to_string(W) + "x" +
+                         std::to_string(H) + " image lies between min_size " +
+                         std::to_string(o.min_size) + " and max_size " + std::to_string(o.max_size) +
+                         " (and min_scale/max_scale): the network would never run");
+
   // Best score first; ties keep the pooling order (coarser levels after finer).
   std::vector<size_t> order(candidates.size());
   std::iota(order.begin(), order.end(), 0);
