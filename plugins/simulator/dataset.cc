@@ -1,5 +1,6 @@
 #include "dataset.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -131,15 +132,104 @@ void ParallelFor(size_t n, int threads, const Hooks& hooks, const std::function<
   if (error) std::rethrow_exception(error);
 }
 
-// A sequence's route: a random walk from (near) the start node, inside its area.
+// Where the mapping platform drove: each mapping trajectory sampled every
+// metre of travel.
+using Path2d = std::vector<Eigen::Vector2d>;
+std::vector<Path2d> MappedPaths(const std::vector<Trajectory>& mapping) {
+  std::vector<Path2d> paths;
+  for (const Trajectory& t : mapping) {
+    Path2d path;
+    for (const PlanarState& s : t.states) {
+      const Eigen::Vector2d p(s.x, s.y);
+      if (path.empty() || (p - path.back()).norm() >= 1.0) path.push_back(p);
+    }
+    paths.push_back(std::move(path));
+  }
+  return paths;
+}
+
+// The longest stretches of the mapped paths inside an area (x < split for
+// validation, x >= split for test), at least 3 m long.
+std::vector<Path2d> MappedRuns(const std::vector<Path2d>& paths, bool west, double split) {
+  std::vector<Path2d> runs;
+  for (const Path2d& path : paths) {
+    Path2d run;
+    for (size_t k = 0; k <= path.size(); ++k) {
+      const bool inside = k < path.size() && ((path[k].x() < split) == west);
+      if (inside) run.push_back(path[k]);
+      if (!inside || k == path.size()) {
+        if (run.size() >= 4) runs.push_back(run);
+        run.clear();
+      }
+    }
+  }
+  return runs;
+}
+
+// The validation/test dividing line: the floor's query_split_x when the map
+// was driven on both sides of it, else the median x of the mapped paths (a
+// short mapping run may stay on one side).
+double QuerySplitX(const SceneSpec& spec, const std::vector<Path2d>& mapped) {
+  if (mapped.empty() || (!MappedRuns(mapped, true, spec.query_split_x).empty() &&
+                         !MappedRuns(mapped, false, spec.query_split_x).empty())) {
+    return spec.query_split_x;
+  }
+  std::vector<double> xs;
+  for (const Path2d& path : mapped)
+    for (const Eigen::Vector2d& p : path) xs.push_back(p.x());
+  if (xs.empty()) return spec.query_split_x;
+  std::nth_element(xs.begin(), xs.begin() + xs.size() / 2, xs.end());
+  return xs[xs.size() / 2];
+}
+
+// A query revisits the mapped space, as in the paper's datasets (validation
+// and test sequences recorded in the mapped floor on other days): it drives
+// one mapped stretch of its area, back and forth, 0.3 m off the mapping line.
+// Empty when the area has no mapped stretch.
+std::vector<Eigen::Vector2d> QueryWaypoints(const std::vector<Path2d>& runs, double length_m,
+                                            std::mt19937_64& rng) {
+  if (runs.empty()) return {};
+  std::uniform_real_distribution<double> u(-1, 1);
+  Path2d run = runs[rng() % runs.size()];
+  if (u(rng) > 0) std::reverse(run.begin(), run.end());
+  const Eigen::Vector2d offset = 0.3 * Eigen::Vector2d(u(rng), u(rng));
+  std::vector<Eigen::Vector2d> waypoints;
+  double length = 0;
+  for (int pass = 0; length < length_m && pass < 1000; ++pass) {
+    for (size_t k = 0; k < run.size(); ++k) {
+      const Eigen::Vector2d p = run[pass % 2 == 0 ? k : run.size() - 1 - k] + offset;
+      if (!waypoints.empty()) length += (p - waypoints.back()).norm();
+      if (waypoints.empty() || (p - waypoints.back()).norm() > 1e-6) waypoints.push_back(p);
+    }
+  }
+  return waypoints;
+}
+
+// A sequence's route: mapping sequences take a random walk from (near) the
+// start node; queries revisit a mapped stretch of their area (QueryWaypoints),
+// or walk the graph inside their area when it has none.
 Trajectory PlanTrajectory(const SceneSpec& spec, const SimOptions& o, const SequencePlan& plan,
-                          const WheelOptions& wheels) {
+                          const WheelOptions& wheels, const std::vector<Path2d>& mapped,
+                          double split_x) {
   std::mt19937_64 rng(Mix(plan.seed, 1));
   std::uniform_real_distribution<double> u(-1, 1);
   const WalkGraph& g = spec.walk;
+  const double length = plan.duration_s * o.limits.max_speed * 1.5 + 20;
+  if (plan.split == "validation" || plan.split == "test") {
+    const std::vector<Eigen::Vector2d> waypoints =
+        QueryWaypoints(MappedRuns(mapped, plan.split == "validation", split_x), length, rng);
+    if (waypoints.size() >= 2) {
+      const Eigen::Vector2d first_leg = waypoints[1] - waypoints[0];
+      const double yaw = std::atan2(first_leg.y(), first_leg.x()) + 0.3 * u(rng);
+      return Drive(waypoints, std::vector<bool>(waypoints.size(), false), yaw, o.limits,
+                   plan.duration_s, wheels.radius);
+    }
+  }
+  SceneSpec area = spec;
+  area.query_split_x = split_x;
   std::function<bool(int)> allowed;
-  if (plan.split == "validation") allowed = [&](int n) { return g.nodes[n].x() < spec.query_split_x; };
-  if (plan.split == "test") allowed = [&](int n) { return g.nodes[n].x() >= spec.query_split_x; };
+  if (plan.split == "validation") allowed = [&](int n) { return g.nodes[n].x() < area.query_split_x; };
+  if (plan.split == "test") allowed = [&](int n) { return g.nodes[n].x() >= area.query_split_x; };
   int start = spec.start_node;
   if (allowed && !allowed(start)) {  // nearest node inside the area
     double best = 1e18;
@@ -147,7 +237,6 @@ Trajectory PlanTrajectory(const SceneSpec& spec, const SimOptions& o, const Sequ
       if (allowed(static_cast<int>(n)) && (g.nodes[n] - g.nodes[start]).norm() < best)
         best = (g.nodes[n] - g.nodes[start]).norm(), start = static_cast<int>(n);
   }
-  const double length = plan.duration_s * o.limits.max_speed * 1.5 + 20;
   const std::vector<int> route = PlanRoute(g, start, length, rng, allowed);
   std::vector<Eigen::Vector2d> waypoints{g.nodes[start] + 0.3 * Eigen::Vector2d(u(rng), u(rng))};
   std::vector<bool> spins{false};
@@ -243,10 +332,18 @@ DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int thr
   // Plan every sequence first (cheap) so progress has a total.
   std::vector<SequenceWork> work;
   uint64_t total = 0;
+  std::vector<Trajectory> mapping;  // PlanSequences lists the mapping sequences first
+  std::vector<Path2d> mapped;
+  double split_x = spec.query_split_x;
   for (const SequencePlan& plan : PlanSequences(o)) {
     SequenceWork w;
     w.plan = plan;
-    w.trajectory = PlanTrajectory(spec, o, plan, rig.wheels);
+    if (plan.split != "mapping" && mapped.empty() && !mapping.empty()) {
+      mapped = MappedPaths(mapping);
+      split_x = QuerySplitX(spec, mapped);
+    }
+    w.trajectory = PlanTrajectory(spec, o, plan, rig.wheels, mapped, split_x);
+    if (plan.split == "mapping") mapping.push_back(w.trajectory);
     const double duration = w.trajectory.duration();
     for (size_t c = 0; c < rig.cameras.size(); ++c)
       for (const Capture& cap : CaptureTimes(rig.cameras[c], duration, Mix(plan.seed, 100 + c)))

@@ -102,5 +102,5 @@ class Simulator : public Stage<SimulatorOptions> {
 
 }  // namespace locforge::sim
 
-LOCFORGE_PLUGIN("simulator", "0.1.0", "Synthetic crowded indoor recordings with ground truth",
+LOCFORGE_PLUGIN("simulator", "0.2.0", "Synthetic crowded indoor recordings with ground truth",
                 locforge::sim::Simulator)
