@@ -55,12 +55,12 @@ void LidarToLidar::Run(RunContext& ctx) {
   std::vector<std::pair<Cloud, double>> ref_scans, other_scans;  // cloud, record time
   for (size_t i = first; i < refs.size() && ref_scans.size() < static_cast<size_t>(o.scans); ++i) {
     if (!odometry.SameSegment(t0, refs[i].timestamp)) break;
-    ref_scans.emplace_back(ReadPcd(k.ExistingRecordDataPath(refs[i].path)), static_cast<double>(refs[i].timestamp));
+    ref_scans.emplace_back(ReadScan(k.ExistingRecordDataPath(refs[i].path)), static_cast<double>(refs[i].timestamp));
     const kapture::DataRecord* best = nullptr;
     for (const auto& r : others)
       if (!best || std::abs(r.timestamp - refs[i].timestamp) < std::abs(best->timestamp - refs[i].timestamp)) best = &r;
     if (best && odometry.SameSegment(t0, best->timestamp))
-      other_scans.emplace_back(ReadPcd(k.ExistingRecordDataPath(best->path)), static_cast<double>(best->timestamp));
+      other_scans.emplace_back(ReadScan(k.ExistingRecordDataPath(best->path)), static_cast<double>(best->timestamp));
   }
   // Points of `scan` (sensor frame, per-point times) into frame F at t0, where
   // F = platform for the reference, the other LiDAR (current extrinsic) otherwise.

@@ -1,6 +1,7 @@
-// Point clouds of the LiDAR stages: xyz (float) with optional per-point time,
-// PCD read/write, voxel downsampling. Kept small on purpose; the shared
-// locforge/pointcloud_io.h readers can replace ReadPcd once they land.
+// Point clouds of the LiDAR stages: locforge::PointCloud (xyz, optional
+// per-point time) read and written with the SDK (locforge/pointcloud_io.h);
+// here only what the stages add: non-finite returns dropped on read, voxel
+// downsampling, rigid transform, and the map-crispness measure.
 #ifndef LOCFORGE_PLUGINS_LIDAR_CLOUD_H_
 #define LOCFORGE_PLUGINS_LIDAR_CLOUD_H_
 
@@ -8,6 +9,7 @@
 #include <vector>
 
 #include "locforge/fs.h"
+#include "locforge/pointcloud_io.h"
 #include "locforge/pose.h"
 #include "locforge/registration.h"
 
@@ -16,18 +18,26 @@ namespace locforge::lidar {
 // times: seconds after the record timestamp; empty when unknown.
 using Cloud = locforge::PointCloud;
 
-// Reads a PCD (ascii or binary; fields x y z required, `time` F32/F64 kept if present).
-// Throws InputError naming the file and the field.
-Cloud ReadPcd(const fs::path& path);
-// Writes a binary PCD with fields x y z (atomic).
-void WritePcd(const fs::path& path, const Cloud& cloud);
-// Writes an ascii PLY with vertex x y z (atomic).
-void WritePly(const fs::path& path, const Cloud& cloud);
+// A PCD/PLY scan (SDK reader) without its NaN / infinite returns (organised
+// clouds mark missing returns so). Throws InputError naming the file and field.
+Cloud ReadScan(const fs::path& path);
 
 // One point (the centroid) per occupied voxel of side `voxel` (m); times dropped.
 Cloud VoxelDownsample(const Cloud& cloud, double voxel);
 // Applies T to every point.
 void Transform(const Pose& T, Cloud* cloud);
+
+// Crispness of an accumulated map: for every point with at least `k`
+// neighbours within `radius`, the distance from the point to the least-squares
+// plane of its k nearest neighbours (itself excluded; normal = eigenvector of
+// the smallest eigenvalue of their covariance). A blurred map (walls seen
+// twice, a few cm apart) has larger residuals than a crisp one.
+struct PlaneResidualStats {
+  size_t points = 0;      // points evaluated (enough neighbours)
+  size_t skipped = 0;     // points with fewer than k neighbours within radius
+  double mean = 0, median = 0, rmse = 0, p90 = 0;  // m
+};
+PlaneResidualStats MapPlaneResidual(const Cloud& map, int k = 10, double radius = 0.5);
 
 }  // namespace locforge::lidar
 

@@ -2,6 +2,8 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Eigenvalues>
+#include <cmath>
 #include <sstream>
 
 #include "locforge/error.h"
@@ -21,6 +23,35 @@ Matrix6d SwapRotationTranslation(const Matrix6d& m) {
   out.topRightCorner<3, 3>() = m.bottomLeftCorner<3, 3>();
   out.bottomLeftCorner<3, 3>() = m.topRightCorner<3, 3>();
   return out;
+}
+
+Matrix6d RegistrationInformationToEdge(const Matrix6d& H, const Pose& T_ab) {
+  const Eigen::Matrix3d R = T_ab.R();
+  Eigen::Matrix3d tx;
+  tx << 0, -T_ab.t.z(), T_ab.t.y(), T_ab.t.z(), 0, -T_ab.t.x(), -T_ab.t.y(), T_ab.t.x(), 0;
+  Matrix6d M = Matrix6d::Zero();  // rows (w, v), columns (r_t, r_r)
+  M.topRightCorner<3, 3>() = R;
+  M.bottomLeftCorner<3, 3>() = Eigen::Matrix3d::Identity();
+  M.bottomRightCorner<3, 3>() = tx * R;
+  const Matrix6d omega = M.transpose() * H * M;
+  return 0.5 * (omega + omega.transpose());
+}
+
+bool NormalizeInformation(const Matrix6d& omega, double sigma_t, double sigma_r, double max_ratio,
+                          Matrix6d* out) {
+  if (!omega.allFinite()) return false;
+  const double lt = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(omega.topLeftCorner<3, 3>()).eigenvalues()(2);
+  const double lr = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(omega.bottomRightCorner<3, 3>()).eigenvalues()(2);
+  if (!(lt > 0) || !(lr > 0)) return false;
+  Vector6d d;
+  d << Eigen::Vector3d::Constant(1 / (sigma_t * std::sqrt(lt))), Eigen::Vector3d::Constant(1 / (sigma_r * std::sqrt(lr)));
+  Matrix6d scaled = d.asDiagonal() * omega * d.asDiagonal();
+  Vector6d floor;
+  floor << Eigen::Vector3d::Constant(1 / std::pow(max_ratio * sigma_t, 2)),
+      Eigen::Vector3d::Constant(1 / std::pow(max_ratio * sigma_r, 2));
+  scaled += floor.asDiagonal().toDenseMatrix();
+  *out = scaled;
+  return true;
 }
 
 namespace {

@@ -43,6 +43,24 @@ struct PoseGraph {
 // this swaps it to the graph's (t, r) order (and back: the swap is its own inverse).
 Matrix6d SwapRotationTranslation(const Matrix6d& information);
 
+// A registration's information H (abi.h: tangent (w, v), left perturbation
+// T_ab <- Exp(xi) T_ab) in the coordinates of this graph's edge residual r
+// (header: r = [dt ; 2 vec(dq)] with dt in frame a, dq on the right). To first
+// order xi = M r with M = [[0, R_ab], [I, [t_ab]x R_ab]], so the same quadratic
+// form is r^T (M^T H M) r; returned in (t, r) order.
+Matrix6d RegistrationInformationToEdge(const Matrix6d& H, const Pose& T_ab);
+
+// Rescales an edge information Omega (t, r order) to D Omega D with
+// D = diag(a I3, b I3) so that its best-constrained translation direction has
+// std `sigma_t` and its best rotation direction `sigma_r` (rad), keeping its
+// shape (directions the scans leave free, e.g. along a corridor, stay weak),
+// then adds the floor diag(1/(ratio sigma_t)^2, 1/(ratio sigma_r)^2) so no
+// direction is weaker than `max_ratio` times those stds. Returns false (and
+// leaves *out alone) when Omega is not usable (non-finite or no positive
+// eigenvalue in a block).
+bool NormalizeInformation(const Matrix6d& omega, double sigma_t, double sigma_r, double max_ratio,
+                          Matrix6d* out);
+
 struct PoseGraphOptions {
   int max_iterations = 100;
   int threads = 1;

@@ -21,7 +21,15 @@ namespace locforge::lidar {
 
 void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
   using O = PoseGraphSlamOptions;
-  s.Add("dataset", &O::dataset, "Kapture recording (wheel records, rigs, camera records)").Path().Required();
+  s.Add("dataset", &O::dataset,
+        "Kapture recording (wheel records, rigs, camera records); required with motion_prior wheel").Path();
+  s.Add("motion_prior", &O::motion_prior,
+        "Initial guess of sequential registrations: wheel odometry, or constant velocity (no odometry; "
+        "every scan a keyframe)").Choices({"wheel", "constant_velocity"});
+  s.Add("max_scan_gap", &O::max_scan_gap,
+        "constant_velocity: a larger time gap between scans starts a new segment (s)").Min(1e-6);
+  s.Add("max_guess_deviation", &O::max_guess_deviation,
+        "A sequential registration farther than this from its guess failed (m)").Min(0);
   s.Add("registration", &O::registration, "Registration back-end (stage id of a component)");
   s.Add("registration_params", &O::registration_params, "key=value parameters of the back-end");
   s.Add("keyframe_distance", &O::keyframe_distance, "Travel between keyframes (m)").Range(0, 100);
@@ -38,8 +46,15 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
   s.Add("loop_stride", &O::loop_stride, "Search loops from every n-th keyframe").Range(1, 1000);
   s.Add("loss", &O::loss, "Robust loss of loop edges").Choices({"cauchy", "huber", "none"});
   s.Add("loss_scale", &O::loss_scale, "Robust loss scale (whitened residual units)").Min(1e-6);
-  s.Add("sigma_translation", &O::sigma_translation, "Std of registration edges (m)").Min(1e-6);
-  s.Add("sigma_rotation", &O::sigma_rotation, "Std of registration edges (deg)").Min(1e-6);
+  s.Add("edge_information", &O::edge_information,
+        "Information of registration edges: the back-end's Hessian rescaled to the sigmas (registration) "
+        "or diagonal from the sigmas (fixed)").Choices({"registration", "fixed"});
+  s.Add("information_max_ratio", &O::information_max_ratio,
+        "edge_information registration: weakest direction at most this many sigmas").Range(1, 1e6);
+  s.Add("sigma_translation", &O::sigma_translation,
+        "Std of registration edges (m; their best-constrained direction with edge_information registration)")
+      .Min(1e-6);
+  s.Add("sigma_rotation", &O::sigma_rotation, "Std of registration edges (deg; likewise)").Min(1e-6);
   s.Add("odometry_sigma", &O::odometry_sigma,
         "Std of odometry edges per metre driven (m/m); 0: no odometry edges").Min(0);
   s.Add("odometry_sigma_rotation", &O::odometry_sigma_rotation,
@@ -49,6 +64,10 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
   s.Add("planar_sigma_tilt", &O::planar_sigma_tilt, "Tilt std of the planar prior (deg)").Min(1e-6);
   s.Add("rounds", &O::rounds, "Loop search + optimisation rounds").Range(1, 20);
   s.Add("map_voxel", &O::map_voxel, "Voxel of the accumulated map (m)").Range(0.005, 10);
+  s.Add("map_residual_k", &O::map_residual_k,
+        "Neighbours of the map's point-to-plane residual (slam.json map_plane_residual)").Range(3, 100);
+  s.Add("map_residual_radius", &O::map_residual_radius, "Neighbour search radius of that residual (m)")
+      .Range(0.01, 10);
   s.Add("initial_poses", &O::initial_poses,
         "Manual initial-pose corrections, one 'sequence x y yaw_deg' per entry");
   s.Add("seconds_per_unit", &O::seconds_per_unit, "Duration of one timestamp unit (s)").Range(1e-12, 1);
@@ -80,7 +99,7 @@ struct Keyframe {
   Timestamp timestamp = 0;
   std::string sequence;
   Cloud cloud, rough;
-  double travelled = 0;  // odometry distance since the sequence start (m)
+  double travelled = 0;  // distance since the sequence start (m): odometry, or estimated
 };
 
 // "undistorted/<seq>/..." -> "<seq>"; paths without a folder -> "".
@@ -100,8 +119,12 @@ Matrix6d DiagonalInformation(double sigma_t, double sigma_r_rad) {
 class Slam {
  public:
   Slam(const PoseGraphSlamOptions& o, RunContext& ctx)
-      : o_(o), ctx_(ctx), odometry_(WheelOdometry::FromKapture(o.dataset, o.Wheels())),
-        backend_(MakeBackend(o, ctx)) {}
+      : o_(o), ctx_(ctx), backend_(MakeBackend(o, ctx)) {
+    if (o.motion_prior == "wheel" && o.dataset.empty())
+      throw ParamError("slam/pose_graph: dataset is required with motion_prior wheel (the wheel records)");
+    if (o.motion_prior == "wheel")
+      odometry_ = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(o.dataset, o.Wheels()));
+  }
 
   void Run();
 
@@ -118,13 +141,17 @@ class Slam {
   void AddSequentialEdges();
   int AddLoopEdges();
   bool TryLoop(const Keyframe& a, const Keyframe& b);
+  // Same sequence and motion segment (odometry segment, or no gap above max_scan_gap).
+  bool SameSegment(const Keyframe& a, Timestamp t, const std::string& sequence) const;
+  Pose MotionGuess(size_t i) const;
+  Matrix6d EdgeInformation(const RegistrationResult& r, const Pose& T_ab) const;
   Pose PoseAt(Timestamp t, bool* found) const;
   void WriteOutputs(const std::vector<kapture::DataRecord>& scans, const PoseGraph& before,
                     const PoseGraphSummary& summary, double seconds);
 
   const PoseGraphSlamOptions& o_;
   RunContext& ctx_;
-  WheelOdometry odometry_;
+  std::unique_ptr<WheelOdometry> odometry_;  // null with motion_prior constant_velocity
   RegistrationBackend backend_;
   std::vector<Keyframe> keyframes_;  // sequences in time order, each in time order
   PoseGraph graph_;
@@ -132,6 +159,7 @@ class Slam {
   int64_t loop_tests_ = 0;
   std::set<std::pair<std::string, std::string>> joined_;  // sequences joined by a loop
   int sequential_fallbacks_ = 0;
+  int information_fallbacks_ = 0;  // registration information unusable: fixed sigmas used
   std::map<std::string, Pose> start_poses_;
 };
 
@@ -150,35 +178,37 @@ void Slam::SelectKeyframes(const std::vector<kapture::DataRecord>& scans, const 
   const Keyframe* last = nullptr;
   for (const auto& r : scans) {
     const double t = static_cast<double>(r.timestamp);
-    if (!odometry_.Covers(t)) continue;
+    if (odometry_ && !odometry_->Covers(t)) continue;
     const std::string seq = SequenceOfScan(r.path);
-    const bool new_sequence = !last || last->sequence != seq || !odometry_.SameSegment(last->timestamp, t);
+    const bool new_sequence = !last || !SameSegment(*last, r.timestamp, seq);
     double travelled = 0;
-    if (!new_sequence) {
-      const Pose rel = odometry_.Relative(last->timestamp, t);
+    if (!new_sequence && odometry_) {
+      const Pose rel = odometry_->Relative(last->timestamp, t);
       const double angle = Eigen::AngleAxisd(rel.q).angle();
       if (rel.t.norm() < o_.keyframe_distance && angle < max_angle) continue;
-      travelled = last->travelled + odometry_.Distance(last->timestamp, t);
+      travelled = last->travelled + odometry_->Distance(last->timestamp, t);
     }
     Keyframe kf;
     kf.id = static_cast<int>(keyframes_.size());
     kf.timestamp = r.timestamp;
     kf.sequence = seq;
     kf.travelled = travelled;
-    kf.cloud = ReadPcd(k.ExistingRecordDataPath(r.path, "sensors/records_lidar.txt"));
+    kf.cloud = ReadScan(k.ExistingRecordDataPath(r.path, "sensors/records_lidar.txt"));
     kf.rough = VoxelDownsample(kf.cloud, o_.loop_rough_voxel);
-    // Initial pose: sequence start (identity, or the manual correction) x odometry.
+    // Initial pose: sequence start (identity, or the manual correction) x
+    // odometry (constant velocity: chained by the sequential registrations).
     if (new_sequence) {
       const auto c = corrections.find(seq);
-      start_poses_[seq] = c != corrections.end() ? c->second : Pose();
+      if (!start_poses_.count(seq)) start_poses_[seq] = c != corrections.end() ? c->second : Pose();
       graph_.nodes[kf.id] = start_poses_[seq];
     } else {
-      graph_.nodes[kf.id] = graph_.nodes[last->id] * odometry_.Relative(last->timestamp, t);
+      graph_.nodes[kf.id] = graph_.nodes[last->id] * (odometry_ ? odometry_->Relative(last->timestamp, t) : Pose());
     }
     keyframes_.push_back(std::move(kf));
     last = &keyframes_.back();
   }
-  if (keyframes_.empty()) throw InputError(scans_root.string(), 0, "records_lidar", "no scan covered by odometry");
+  if (keyframes_.empty())
+    throw InputError(scans_root.string(), 0, "records_lidar", odometry_ ? "no scan covered by odometry" : "no scan");
   graph_.fixed = {0};
   if (o_.planar) {
     graph_.planar_sigma_z = o_.planar_sigma_z;
@@ -186,32 +216,95 @@ void Slam::SelectKeyframes(const std::vector<kapture::DataRecord>& scans, const 
   }
 }
 
+bool Slam::SameSegment(const Keyframe& a, Timestamp t, const std::string& sequence) const {
+  if (a.sequence != sequence) return false;
+  if (odometry_) return odometry_->SameSegment(static_cast<double>(a.timestamp), static_cast<double>(t));
+  return std::abs(static_cast<double>(t - a.timestamp)) * o_.seconds_per_unit <= o_.max_scan_gap;
+}
+
+// Guess of T_{i-1,i}: wheel odometry, or constant velocity: the previous
+// keyframe step's twist xi = Log(T_{i-2,i-1}) scaled by the ratio of the time
+// steps (identity at a segment's start).
+Pose Slam::MotionGuess(size_t i) const {
+  const Keyframe& a = keyframes_[i - 1];
+  const Keyframe& b = keyframes_[i];
+  if (odometry_) return odometry_->Relative(static_cast<double>(a.timestamp), static_cast<double>(b.timestamp));
+  if (i < 2 || !SameSegment(keyframes_[i - 2], a.timestamp, a.sequence)) return Pose();
+  const Keyframe& z = keyframes_[i - 2];
+  const Pose previous = graph_.nodes.at(z.id).Inverse() * graph_.nodes.at(a.id);
+  const double ratio = static_cast<double>(b.timestamp - a.timestamp) / std::max<double>(1, a.timestamp - z.timestamp);
+  return ExpSE3(LogSE3(previous) * ratio);
+}
+
+// Information of a registration edge (header of PoseGraphSlamOptions): the
+// back-end's Hessian in the edge's coordinates, rescaled; fixed sigmas when
+// asked for or when the Hessian is unusable.
+Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) const {
+  const double sigma_r = o_.sigma_rotation * M_PI / 180;
+  const Matrix6d fixed = DiagonalInformation(o_.sigma_translation, sigma_r);
+  if (o_.edge_information == "fixed") return fixed;
+  Matrix6d out;
+  if (!NormalizeInformation(RegistrationInformationToEdge(r.information, T_ab), o_.sigma_translation, sigma_r,
+                            o_.information_max_ratio, &out)) {
+    ++const_cast<Slam*>(this)->information_fallbacks_;
+    return fixed;
+  }
+  return out;
+}
+
 void Slam::AddSequentialEdges() {
-  const Matrix6d icp_info = DiagonalInformation(o_.sigma_translation, o_.sigma_rotation * M_PI / 180);
   const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation, 5 * o_.sigma_rotation * M_PI / 180);
-  constexpr double kMaxDeviationFromOdometry = 0.3;  // m: beyond, registration failed
   for (size_t i = 1; i < keyframes_.size(); ++i) {
     ctx_.ThrowIfCancelled();
     const Keyframe& a = keyframes_[i - 1];
-    const Keyframe& b = keyframes_[i];
-    if (a.sequence != b.sequence || !odometry_.SameSegment(a.timestamp, b.timestamp)) continue;
-    const Pose guess = odometry_.Relative(a.timestamp, b.timestamp);
-    const RegistrationResult r = backend_.Align(b.cloud, a.cloud, guess, ctx_.threads());
+    Keyframe& b = keyframes_[i];
+    if (!SameSegment(a, b.timestamp, b.sequence)) continue;
+    // Constant velocity mispredicts sudden turns and stops: the zero-motion
+    // guess is tried too (the better-overlapping accepted result is kept),
+    // then, when both fail, headings around the guess.
+    std::vector<Pose> guesses = {MotionGuess(i)};
+    if (!odometry_ && (guesses[0].t.norm() > 0.05 || Eigen::AngleAxisd(guesses[0].q).angle() > 0.05))
+      guesses.push_back(Pose());
+    Pose guess = guesses[0];
+    RegistrationResult r;
+    bool ok = false;
+    auto try_guesses = [&](const std::vector<Pose>& candidates) {
+      for (const Pose& g : candidates) {
+        const RegistrationResult c = backend_.Align(b.cloud, a.cloud, g, ctx_.threads());
+        const bool c_ok = c.converged && c.inlier_fraction >= o_.min_overlap &&
+                          (c.T_target_source.t - g.t).norm() < o_.max_guess_deviation;
+        if (c_ok && (!ok || c.inlier_fraction > r.inlier_fraction)) {
+          r = c;
+          guess = g;
+          ok = true;
+        }
+      }
+    };
+    try_guesses(guesses);
+    if (!ok && !odometry_) {
+      // A turn faster than the prior knows: headings around the guess, as when
+      // joining sequences (loop_yaw_hypotheses of them).
+      std::vector<Pose> turned;
+      for (int h = 1; h < o_.loop_yaw_hypotheses; ++h)
+        turned.push_back(guesses[0] * Pose(Eigen::Quaterniond(Eigen::AngleAxisd(
+                                               2 * M_PI * h / o_.loop_yaw_hypotheses, Eigen::Vector3d::UnitZ())),
+                                           Eigen::Vector3d::Zero()));
+      try_guesses(turned);
+    }
+    guess = ok ? guess : guesses[0];
     PoseGraphEdge e;
     e.from = a.id;
     e.to = b.id;
-    const bool ok = r.converged && r.inlier_fraction >= o_.min_overlap &&
-                    (r.T_target_source.t - guess.t).norm() < kMaxDeviationFromOdometry;
     e.T_from_to = ok ? r.T_target_source : guess;
-    e.information = ok ? icp_info : odo_info;
+    e.information = ok ? EdgeInformation(r, e.T_from_to) : odo_info;
     if (!ok) ++sequential_fallbacks_;
     graph_.edges.push_back(e);
     // Odometry edge beside the registration one: constrains what scans leave
     // free (along corridors), sigma proportional to the distance driven.
-    if (ok && o_.odometry_sigma > 0) {
+    if (ok && odometry_ && o_.odometry_sigma > 0) {
       PoseGraphEdge odo = e;
       odo.T_from_to = guess;
-      const double d = std::max(odometry_.Distance(a.timestamp, b.timestamp), 0.05);
+      const double d = std::max(odometry_->Distance(a.timestamp, b.timestamp), 0.05);
       // Turning in place: wheel-radius and axle errors scale the turned angle (5 % here).
       const double turned = Eigen::AngleAxisd(guess.q).angle();
       odo.information = DiagonalInformation(o_.odometry_sigma * d,
@@ -220,6 +313,7 @@ void Slam::AddSequentialEdges() {
     }
     // Chain the initial estimate along the registered edges.
     graph_.nodes[b.id] = graph_.nodes[a.id] * e.T_from_to;
+    if (!odometry_) b.travelled = a.travelled + e.T_from_to.t.norm();
     ctx_.Progress(i, keyframes_.size(), "sequential edges");
   }
 }
@@ -236,19 +330,30 @@ bool Slam::TryLoop(const Keyframe& a, const Keyframe& b) {
     const Pose yaw(Eigen::Quaterniond(Eigen::AngleAxisd(2 * M_PI * h / hypotheses, Eigen::Vector3d::UnitZ())),
                    Eigen::Vector3d::Zero());
     const RegistrationResult r = backend_.Align(b.rough, a.rough, guess * yaw, ctx_.threads());
+    ctx_.Debug("pose_graph: loop " + std::to_string(a.id) + "-" + std::to_string(b.id) + " rough: converged " +
+               std::to_string(r.converged) + " overlap " + std::to_string(r.inlier_fraction) + " error " +
+               std::to_string(r.final_error) + " iterations " + std::to_string(r.iterations));
     if (!r.converged || r.final_error > o_.loop_rough_error) continue;
     if (!rough.converged || r.inlier_fraction > rough.inlier_fraction) rough = r;
   }
-  if (!rough.converged || rough.inlier_fraction < o_.loop_rough_overlap) return false;
-  if ((rough.T_target_source.t - guess.t).norm() > o_.loop_radius) return false;
+  auto reject = [&](const std::string& why) {
+    ctx_.Debug("pose_graph: loop " + std::to_string(a.id) + "-" + std::to_string(b.id) + " rejected: " + why);
+    return false;
+  };
+  if (!rough.converged || rough.inlier_fraction < o_.loop_rough_overlap)
+    return reject("rough overlap " + std::to_string(rough.inlier_fraction) + " error " + std::to_string(rough.final_error));
+  if ((rough.T_target_source.t - guess.t).norm() > o_.loop_radius) return reject("rough result far from the guess");
   // Fine: full clouds from the rough result.
   const RegistrationResult fine = backend_.Align(b.cloud, a.cloud, rough.T_target_source, ctx_.threads());
-  if (!fine.converged || fine.inlier_fraction < o_.loop_overlap) return false;
+  if (!fine.converged || fine.inlier_fraction < o_.loop_overlap)
+    return reject("fine overlap " + std::to_string(fine.inlier_fraction));
+  ctx_.Debug("pose_graph: loop " + std::to_string(a.id) + "-" + std::to_string(b.id) + " accepted: overlap " +
+             std::to_string(fine.inlier_fraction));
   PoseGraphEdge e;
   e.from = a.id;
   e.to = b.id;
   e.T_from_to = fine.T_target_source;
-  e.information = DiagonalInformation(o_.sigma_translation, o_.sigma_rotation * M_PI / 180);
+  e.information = EdgeInformation(fine, e.T_from_to);
   e.loss = o_.loss == "cauchy" ? RobustLoss::kCauchy : o_.loss == "huber" ? RobustLoss::kHuber : RobustLoss::kNone;
   e.loss_scale = o_.loss_scale;
   e.loop = true;
@@ -288,22 +393,40 @@ int Slam::AddLoopEdges() {
   return added;
 }
 
-// T_world_rig at t: the latest keyframe at or before t in t's odometry
-// segment, moved by odometry (or the first keyframe, backwards).
+// T_world_rig at t. Wheel odometry: the latest keyframe at or before t in
+// t's odometry segment, moved by odometry (or the first keyframe, backwards).
+// Constant velocity: interpolated between the keyframes around t (held at
+// the nearest one outside them), within one segment.
 Pose Slam::PoseAt(Timestamp t, bool* found) const {
   // Keyframes are in time order (scans sorted by time): binary search, then
   // the neighbour at or before t, else the one after, in t's segment.
   const auto after = std::upper_bound(keyframes_.begin(), keyframes_.end(), t,
                                       [](Timestamp v, const Keyframe& kf) { return v < kf.timestamp; });
-  const Keyframe* best = nullptr;
   const double td = static_cast<double>(t);
-  if (after != keyframes_.begin() && odometry_.SameSegment(static_cast<double>((after - 1)->timestamp), td))
-    best = &*(after - 1);
-  else if (after != keyframes_.end() && odometry_.SameSegment(static_cast<double>(after->timestamp), td))
-    best = &*after;
+  const Keyframe* before = after != keyframes_.begin() ? &*(after - 1) : nullptr;
+  const Keyframe* next = after != keyframes_.end() ? &*after : nullptr;
+  if (!odometry_) {
+    auto near = [&](const Keyframe* k) {
+      return k && std::abs(static_cast<double>(t - k->timestamp)) * o_.seconds_per_unit <= o_.max_scan_gap;
+    };
+    const bool nb = near(before), nn = near(next);
+    *found = nb || nn;
+    if (nb && nn && SameSegment(*before, next->timestamp, next->sequence) && next->timestamp > before->timestamp) {
+      const double alpha = static_cast<double>(t - before->timestamp) / static_cast<double>(next->timestamp - before->timestamp);
+      return Interpolate(graph_.nodes.at(before->id), graph_.nodes.at(next->id), alpha);
+    }
+    if (nb) return graph_.nodes.at(before->id);
+    if (nn) return graph_.nodes.at(next->id);
+    return Pose();
+  }
+  const Keyframe* best = nullptr;
+  if (before && odometry_->SameSegment(static_cast<double>(before->timestamp), td))
+    best = before;
+  else if (next && odometry_->SameSegment(static_cast<double>(next->timestamp), td))
+    best = next;
   *found = best != nullptr;
   if (!best) return Pose();
-  return graph_.nodes.at(best->id) * odometry_.Relative(static_cast<double>(best->timestamp), td);
+  return graph_.nodes.at(best->id) * odometry_->Relative(static_cast<double>(best->timestamp), td);
 }
 
 void Slam::Run() {
@@ -338,7 +461,8 @@ void Slam::Run() {
 void Slam::WriteOutputs(const std::vector<kapture::DataRecord>& scans, const PoseGraph& before,
                         const PoseGraphSummary& summary, double seconds) {
   const fs::path out = ctx_.output_dir();
-  kapture::Kapture dataset(o_.dataset);
+  // Sensors, rigs and camera records: the recording, else the scans' own.
+  kapture::Kapture dataset(o_.dataset.empty() ? ctx_.Input("scans") : fs::path(o_.dataset));
   kapture::Trajectories trajectories;
   for (const auto& r : scans) {
     bool found = false;
@@ -399,6 +523,18 @@ void Slam::WriteOutputs(const std::vector<kapture::DataRecord>& scans, const Pos
   }
   std::set<std::string> sequences;
   for (const auto& kf : keyframes_) sequences.insert(kf.sequence);
+  const PlaneResidualStats crisp = MapPlaneResidual(map, o_.map_residual_k, o_.map_residual_radius);
+  std::ostringstream loops_json;
+  loops_json.precision(16);
+  for (const auto& e : graph_.edges) {
+    if (!e.loop) continue;
+    const Keyframe& a = keyframes_[e.from];
+    const Keyframe& b = keyframes_[e.to];
+    const Eigen::Vector3d pa = graph_.nodes.at(a.id).t, pb = graph_.nodes.at(b.id).t;
+    loops_json << (loops_json.tellp() > 0 ? ",\n    " : "\n    ") << "{\"from\": " << a.id << ", \"to\": " << b.id
+               << ", \"from_time\": " << a.timestamp << ", \"to_time\": " << b.timestamp << ", \"from_xy\": ["
+               << pa.x() << ", " << pa.y() << "], \"to_xy\": [" << pb.x() << ", " << pb.y() << "]}";
+  }
   std::ostringstream j;
   j.precision(10);
   j << "{\n  \"scans\": " << scans.size() << ",\n  \"keyframes\": " << keyframes_.size()
@@ -407,7 +543,12 @@ void Slam::WriteOutputs(const std::vector<kapture::DataRecord>& scans, const Pos
     << ",\n  \"loop_edges\": " << loop_edges << ",\n  \"cross_sequence_loop_edges\": " << cross
     << ",\n  \"loop_candidates_tested\": " << loop_tests_ << ",\n  \"initial_cost\": " << summary.initial_cost
     << ",\n  \"final_cost\": " << summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
-    << ",\n  \"map_points\": " << map.size() << ",\n  \"seconds\": " << seconds
+    << ",\n  \"information_fallbacks\": " << information_fallbacks_ << ",\n  \"map_points\": " << map.size()
+    << ",\n  \"map_plane_residual\": {\"k\": " << o_.map_residual_k << ", \"radius\": " << o_.map_residual_radius
+    << ", \"points\": " << crisp.points << ", \"skipped\": " << crisp.skipped << ", \"mean\": " << crisp.mean
+    << ", \"median\": " << crisp.median << ", \"rmse\": " << crisp.rmse << ", \"p90\": " << crisp.p90 << "}"
+    << ",\n  \"loops\": [" << loops_json.str() << "\n  ]"
+    << ",\n  \"seconds\": " << seconds
     << ",\n  \"scans_per_second\": " << scans.size() / std::max(seconds, 1e-9) << "\n}\n";
   WriteFileAtomic(out / "slam.json", j.str());
   ctx_.Info("pose_graph: " + std::to_string(loop_edges) + " loop edges (" + std::to_string(cross) +

@@ -73,6 +73,47 @@ TEST(PoseGraph, LoopClosureRemovesDriftAndCauchyResistsAnOutlier) {
   }
 }
 
+// The registration's information (left perturbation, (w, v) order) moved into
+// the edge residual's coordinates keeps the quadratic form: for small xi,
+// xi^T H xi == r^T Omega r with r the graph residual of T_ab' = Exp(xi) T_ab.
+TEST(PoseGraph, RegistrationInformationMatchesTheEdgeResidualNumerically) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n(0, 1);
+  for (int trial = 0; trial < 5; ++trial) {
+    const Pose T_ab(ExpSO3(Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.5), Eigen::Vector3d(n(rng), n(rng), n(rng)));
+    Matrix6d A;
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < 6; ++c) A(r, c) = n(rng);
+    const Matrix6d H = A * A.transpose() + Matrix6d::Identity();
+    const Matrix6d omega = RegistrationInformationToEdge(H, T_ab);
+    for (int k = 0; k < 5; ++k) {
+      Vector6d xi;
+      for (int i = 0; i < 6; ++i) xi(i) = n(rng) * 1e-5;
+      const Eigen::Quaterniond dq = ExpSO3(xi.head<3>());
+      const Pose perturbed(dq * T_ab.q, dq * T_ab.t + xi.tail<3>());  // (Exp(w), v) T_ab
+      Vector6d r;
+      r.head<3>() = perturbed.t - T_ab.t;
+      r.tail<3>() = 2 * (T_ab.q.conjugate() * perturbed.q).vec();
+      const double expected = xi.dot(H * xi);
+      EXPECT_NEAR(r.dot(omega * r), expected, 1e-4 * expected) << "trial " << trial;
+    }
+  }
+}
+
+// Rescaling keeps the shape: the best direction gets the given sigma, a
+// direction 100x weaker in the Hessian stays weaker (down to the floor).
+TEST(PoseGraph, NormalizeInformationKeepsTheShapeAndFloors) {
+  Vector6d d;
+  d << 1e6, 1e6, 1e2, 4e5, 4e5, 4e5;  // z translation 100x weaker (1e4 in information)
+  Matrix6d out;
+  ASSERT_TRUE(NormalizeInformation(d.asDiagonal(), 0.01, 0.002, 10, &out));
+  EXPECT_NEAR(out(0, 0), 1e4 + 1e2, 1e-6);                   // 1/0.01^2 + floor 1/(10*0.01)^2
+  EXPECT_NEAR(out(2, 2), 1e4 * 1e-4 + 1e2, 1e-6);            // weak direction: its share + floor
+  EXPECT_NEAR(out(3, 3), 1 / (0.002 * 0.002) * 1.01, 1e-3);  // rotation block likewise
+  Matrix6d bad = Matrix6d::Zero();
+  EXPECT_FALSE(NormalizeInformation(bad, 0.01, 0.002, 10, &out));
+}
+
 TEST(PoseGraph, G2oRoundTripAndErrors) {
   const auto dir = testing::MakeTempDir("g2o");
   PoseGraph g;

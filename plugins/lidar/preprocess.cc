@@ -101,7 +101,7 @@ void Preprocess::ProcessItem(RunContext& ctx, const std::string& item) {
   const Eigen::Vector3f box_max(o.self_box[3], o.self_box[4], o.self_box[5]);
   Cloud merged;
   for (const Source& src : found->second) {
-    const Cloud scan = ReadPcd(k.ExistingRecordDataPath(src.path, kapture::layout::RecordsFile("lidar")));
+    const Cloud scan = ReadScan(k.ExistingRecordDataPath(src.path, kapture::layout::RecordsFile("lidar")));
     const Pose& T_platform_lidar = T_platform_lidar_.at(src.lidar);
     // Motion from each point's time to t_ref, cached per millisecond of scan time.
     std::map<int64_t, Eigen::Matrix4f> motion;

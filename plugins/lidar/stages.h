@@ -114,8 +114,21 @@ class Preprocess : public PerItemStage<PreprocessOptions> {
 
 struct PoseGraphSlamOptions {
   std::string dataset;
+  // Initial guess of sequential registrations: "wheel" odometry of `dataset`,
+  // or "constant_velocity" (the previous keyframe-to-keyframe motion,
+  // rescaled to the time step) for recordings without odometry; then every
+  // scan is a keyframe and `dataset` is optional (cameras only).
+  std::string motion_prior = "wheel";
+  double max_scan_gap = 2.0;        // s; constant_velocity: a larger gap starts a new segment
+  double max_guess_deviation = 0.3; // m between a sequential registration and its guess
   std::string registration = "registration/gicp";  // back-end stage id
   std::vector<std::string> registration_params;    // "key=value" given to the back-end
+  // Registration edges' information: "registration" (the back-end's 6x6
+  // Hessian moved into the edge's coordinates and rescaled so its strongest
+  // directions have sigma_translation / sigma_rotation, weaker ones down to
+  // information_max_ratio x those stds), or "fixed" (diagonal from the sigmas).
+  std::string edge_information = "registration";
+  double information_max_ratio = 10;
   double keyframe_distance = 0.5;   // m travelled (odometry) between keyframes
   double keyframe_angle = 10;       // deg turned between keyframes
   double min_overlap = 0.5;         // inlier fraction accepted for sequential edges
@@ -138,6 +151,8 @@ struct PoseGraphSlamOptions {
   double planar_sigma_tilt = 0.1;   // deg
   int rounds = 3;                   // loop search + optimisation rounds
   double map_voxel = 0.05;          // m, accumulated map
+  int map_residual_k = 10;          // neighbours of the map's point-to-plane residual
+  double map_residual_radius = 0.5; // m, their search radius
   // Manual initial-pose corrections: per sequence "seq x y yaw_deg" entries.
   std::vector<std::string> initial_poses;
   double seconds_per_unit = 1e-6;
@@ -152,10 +167,53 @@ class PoseGraphSlam : public Stage<PoseGraphSlamOptions> {
   static StageMeta Meta() {
     return {"slam", "pose_graph",
             "Pose-graph LiDAR SLAM: registration edges, coarse-to-fine loop closures, Ceres, sequences merged",
-            {{"scans", "kapture.dataset", "Undistorted platform-frame scans (lidar/preprocess)"}},
+            {{"scans", "kapture.dataset",
+              "Undistorted platform-frame scans (lidar/preprocess, or source/pcd_keyframes)"}},
             {{"trajectories", "kapture.trajectories",
               "sensors/trajectories.txt: rig at every scan, cameras at every image; map.pcd/ply, "
               "pose_graph.g2o, trajectories.svg, slam.json"}}};
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
+
+// ---- source/pcd_keyframes -------------------------------------------------------
+
+// Imports a folder of PCD/PLY keyframes (already motion-compensated, e.g.
+// ../shared/data/lidar/balm_indoor/scans) as the `scans` kapture that
+// slam/pose_graph reads, with timestamps (and reference poses) from a TUM
+// file whose i-th pose belongs to the i-th scan in file-name order.
+struct PcdKeyframesOptions {
+  std::string scans;         // folder of .pcd / .ply files
+  std::string poses;         // TUM file (timestamp tx ty tz qx qy qz qw, T_world_lidar); "" : none
+  double period = 0.1;       // s between scans when there is no TUM file
+  std::string sequence = "seq";
+  double voxel = 0;          // m; 0 keeps the points as they are
+  double min_range = 0, max_range = 1e9;
+  static void Declare(ParamSchema<PcdKeyframesOptions>& s) {
+    using O = PcdKeyframesOptions;
+    s.Add("scans", &O::scans, "Folder of keyframe clouds (.pcd/.ply, sensor frame, file-name order)")
+        .Path().Required();
+    s.Add("poses", &O::poses,
+          "TUM file: timestamps and reference poses (world <- lidar), i-th line for the i-th scan").Path();
+    s.Add("period", &O::period, "Seconds between scans when no TUM file is given").Range(1e-6, 1e6);
+    s.Add("sequence", &O::sequence, "Sequence name (folder of the records)");
+    s.Add("voxel", &O::voxel, "Voxel downsampling (m); 0: none").Range(0, 10);
+    s.Add("min_range", &O::min_range, "Closer returns are dropped (m)").Min(0);
+    s.Add("max_range", &O::max_range, "Farther returns are dropped (m)").Min(0);
+  }
+  bool Check(std::string* why) const;
+};
+
+class PcdKeyframes : public Stage<PcdKeyframesOptions> {
+ public:
+  static StageMeta Meta() {
+    return {"source", "pcd_keyframes",
+            "Folder of LiDAR keyframes (+ TUM timestamps / reference poses) as a scans kapture",
+            {},
+            {{"scans", "kapture.dataset",
+              "records_lidar.txt of device 'scan' + one PCD per keyframe; trajectories.txt: the "
+              "reference poses (device rig) when a TUM file is given"}}};
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override;
