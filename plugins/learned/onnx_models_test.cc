@@ -389,6 +389,40 @@ TEST_F(OnnxModels, StagesWriteKaptureFeaturesOfEveryImage) {
       EXPECT_LE(kp.At(i, 1), 1080);
     }
   }
+  // pairs/retrieval (plugins/retrieval, when built) consumes global/apgem's
+  // output: each query's top-1 is the best cosine of our own descriptors.
+  const std::string retrieval_plugin = LOCFORGE_RETRIEVAL_PLUGIN_FILE;
+  if (!retrieval_plugin.empty()) {
+    ASSERT_TRUE(registry.LoadFile(retrieval_plugin));
+    const runtime::InputArtifact query{"images", "kapture.dataset", shared / "query"};
+    RunStage(registry, "global/apgem", {{"model", Model("gem")}, {"max_side", "96"}}, {query},
+             tmp / "apgem_query");
+    RunStage(registry, "pairs/retrieval", {{"topk", "1"}},
+             {{"map_features", "kapture.global_features", tmp / "apgem"},
+              {"query_features", "kapture.global_features", tmp / "apgem_query"},
+              {"map", "kapture.dataset", shared / "mapping"},
+              {"query", "kapture.dataset", shared / "query"}},
+             tmp / "pairs");
+    const k::Kapture qf(tmp / "apgem_query");
+    std::map<std::string, std::string> top1;
+    k::CsvReader reader(tmp / "pairs" / "pairs.txt");
+    k::CsvRow row;
+    while (reader.Next(&row)) top1[row.fields[0]] = row.fields[1];
+    const auto queries = k::Kapture(shared / "query").CameraImages();
+    ASSERT_EQ(top1.size(), queries.size());
+    for (const auto& q : queries) {
+      const auto dq = qf.ReadGlobalFeatures("apgem", q);
+      std::string best;
+      double best_score = -2;
+      for (const auto& m : names) {
+        const auto dm = gf.ReadGlobalFeatures("apgem", m);
+        double dot = 0;
+        for (int64_t i = 0; i < dq.dsize; ++i) dot += dq.At(0, i) * dm.At(0, i);
+        if (dot > best_score) best_score = dot, best = m;
+      }
+      EXPECT_EQ(top1[q], best) << q;
+    }
+  }
   fs::remove_all(tmp);
 }
 
