@@ -71,7 +71,7 @@ nodes:
   EXPECT_LT(ate, 0.04);  // measured 0.014
   EXPECT_LT(rot, 0.3);   // measured 0.10
   // Outputs of the SLAM stage.
-  for (const char* f : {"sensors/trajectories.txt", "map.pcd", "map.ply", "pose_graph.g2o", "trajectories.svg", "slam.json"})
+  for (const char* f : {"sensors/trajectories.txt", "map.pcd", "map.ply", "pose_graph.g2o", "trajectories.svg", "trajectories.png", "slam.json"})
     EXPECT_TRUE(fs::exists(dir / "ws/nodes/slam" / f)) << f;
   fs::remove_all(dir);
 }

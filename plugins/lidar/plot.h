@@ -1,5 +1,6 @@
 // Top-down plot of pose-graph trajectories with their loop-closure edges,
-// before and after optimisation side by side (the paper's Figure 4), as SVG.
+// before and after optimisation (the paper's Figure 4), through the SDK's
+// plot API (locforge/plot.h): one figure, written as SVG and PNG.
 #ifndef LOCFORGE_PLUGINS_LIDAR_PLOT_H_
 #define LOCFORGE_PLUGINS_LIDAR_PLOT_H_
 
@@ -7,6 +8,9 @@
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "locforge/fs.h"
+#include "locforge/plot.h"
 
 namespace locforge::lidar {
 
@@ -16,9 +20,13 @@ struct PlotSequence {
   std::vector<Eigen::Vector2d> xy;    // positions of those nodes
 };
 
-// Two panels ("before", "after"); loops are pairs of node ids drawn in red.
-std::string TopDownSvg(const std::vector<PlotSequence>& before, const std::vector<PlotSequence>& after,
-                       const std::vector<std::pair<int, int>>& loops);
+// Before optimisation dashed, after solid (one colour per sequence), loop
+// edges (pairs of node ids) as red segments between the optimised nodes.
+plot::Figure TopDownFigure(const std::vector<PlotSequence>& before, const std::vector<PlotSequence>& after,
+                           const std::vector<std::pair<int, int>>& loops);
+// Writes `stem`.svg and `stem`.png (atomic).
+void WriteTopDown(const fs::path& stem, const std::vector<PlotSequence>& before,
+                  const std::vector<PlotSequence>& after, const std::vector<std::pair<int, int>>& loops);
 
 }  // namespace locforge::lidar
 

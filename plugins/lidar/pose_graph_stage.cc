@@ -513,7 +513,7 @@ void Slam::WriteOutputs(const std::vector<kapture::DataRecord>& scans, const Pos
     plot_after.back().ids.push_back(kf.id);
     plot_after.back().xy.push_back(graph_.nodes.at(kf.id).t.head<2>());
   }
-  WriteFileAtomic(out / "trajectories.svg", TopDownSvg(plot_before, plot_after, loops));
+  WriteTopDown(out / "trajectories", plot_before, plot_after, loops);
 
   int loop_edges = 0, cross = 0;
   for (const auto& e : graph_.edges) {

@@ -171,7 +171,7 @@ class PoseGraphSlam : public Stage<PoseGraphSlamOptions> {
               "Undistorted platform-frame scans (lidar/preprocess, or source/pcd_keyframes)"}},
             {{"trajectories", "kapture.trajectories",
               "sensors/trajectories.txt: rig at every scan, cameras at every image; map.pcd/ply, "
-              "pose_graph.g2o, trajectories.svg, slam.json"}}};
+              "pose_graph.g2o, trajectories.svg/png, slam.json"}}};
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override;
