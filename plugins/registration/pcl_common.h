@@ -1,10 +1,18 @@
-// What the two PCL back-ends share (Eigen only, no PCL types): options and
-// result statistics computed with our own KD-tree at PCL's solution, so all
-// back-ends report inliers, error and information the same way.
+// What the two PCL back-ends share: options, the downsampled input clouds,
+// conversion to PCL clouds, access to PCL's iteration count, and the result
+// built from statistics computed with our own factors at PCL's solution, so
+// all back-ends report inliers, error and information the same way.
 #ifndef LOCFORGE_PLUGINS_REGISTRATION_PCL_COMMON_H_
 #define LOCFORGE_PLUGINS_REGISTRATION_PCL_COMMON_H_
 
+#include <pcl/point_cloud.h>
+
+#include <utility>
+
+#include "gicp/factor.h"
+#include "gicp/preprocess.h"
 #include "locforge/params.h"
+#include "locforge/registration.h"
 
 namespace locforge::pclreg {
 
@@ -29,6 +37,46 @@ struct PclOptions {
         .Range(3, 200);
   }
 };
+
+// Both clouds voxel-downsampled; InputError when either keeps fewer than 6 points.
+inline std::pair<gicp::Points, gicp::Points> DownsampledClouds(const PointCloud& source, const PointCloud& target,
+                                                               double voxel_size, const std::string& stage) {
+  std::pair<gicp::Points, gicp::Points> out(gicp::VoxelDownsample(gicp::ToPoints(source), voxel_size),
+                                            gicp::VoxelDownsample(gicp::ToPoints(target), voxel_size));
+  if (out.first.size() < 6 || out.second.size() < 6)
+    throw InputError(stage + ": clouds need at least 6 points");
+  return out;
+}
+
+// A PCL cloud of points of type P with only xyz filled.
+template <typename P>
+typename pcl::PointCloud<P>::Ptr ToPcl(const gicp::Points& points) {
+  typename pcl::PointCloud<P>::Ptr c(new pcl::PointCloud<P>);
+  c->resize(points.size());
+  for (size_t i = 0; i < points.size(); ++i) (*c)[i].getVector3fMap() = points[i].cast<float>();
+  return c;
+}
+
+// A PCL registration exposing the iteration count PCL keeps protected.
+template <typename Registration>
+class WithIterations : public Registration {
+ public:
+  int iterations() const { return this->nr_iterations_; }
+};
+
+// The result at PCL's solution T from our statistics `s` there.
+inline RegistrationResult MakeResult(bool converged, int iterations, const Eigen::Matrix4d& T,
+                                     const gicp::LinearSystem& s, size_t source_points) {
+  RegistrationResult r;
+  r.converged = converged;
+  r.iterations = iterations;
+  r.num_inliers = s.inliers;
+  r.inlier_fraction = static_cast<double>(s.inliers) / static_cast<double>(source_points);
+  r.final_error = s.inliers ? s.cost / static_cast<double>(s.inliers) : 0;
+  r.T_target_source = Pose::FromMatrix(T);
+  r.information = s.H;
+  return r;
+}
 
 }  // namespace locforge::pclreg
 

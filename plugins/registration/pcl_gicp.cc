@@ -5,8 +5,6 @@
 #include <pcl/point_types.h>
 #include <pcl/registration/gicp.h>
 
-#include "gicp/factor.h"
-#include "gicp/preprocess.h"
 #include "locforge/plugin.h"
 #include "locforge/registration.h"
 #include "pcl_common.h"
@@ -14,19 +12,7 @@
 namespace locforge::pclreg {
 namespace {
 
-using Cloud = pcl::PointCloud<pcl::PointXYZ>;
-
-class Gicp : public pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ> {
- public:
-  int iterations() const { return nr_iterations_; }
-};
-
-Cloud::Ptr ToPcl(const gicp::Points& points) {
-  Cloud::Ptr c(new Cloud);
-  c->resize(points.size());
-  for (size_t i = 0; i < points.size(); ++i) (*c)[i].getVector3fMap() = points[i].cast<float>();
-  return c;
-}
+using Gicp = WithIterations<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>;
 
 class PclGicp : public RegistrationComponent<PclGicp, PclOptions> {
  public:
@@ -38,18 +24,15 @@ class PclGicp : public RegistrationComponent<PclGicp, PclOptions> {
   RegistrationResult Align(const PointCloud& source_cloud, const PointCloud& target_cloud,
                            const Pose& initial, int threads) const override {
     const PclOptions& o = options();
-    const gicp::Points source = gicp::VoxelDownsample(gicp::ToPoints(source_cloud), o.voxel_size);
-    const gicp::Points target = gicp::VoxelDownsample(gicp::ToPoints(target_cloud), o.voxel_size);
-    if (source.size() < 6 || target.size() < 6)
-      throw InputError("registration/pcl_gicp: clouds need at least 6 points");
+    const auto [source, target] = DownsampledClouds(source_cloud, target_cloud, o.voxel_size, "registration/pcl_gicp");
     Gicp g;
-    g.setInputSource(ToPcl(source));
-    g.setInputTarget(ToPcl(target));
+    g.setInputSource(ToPcl<pcl::PointXYZ>(source));
+    g.setInputTarget(ToPcl<pcl::PointXYZ>(target));
     g.setMaxCorrespondenceDistance(o.max_correspondence_distance);
     g.setMaximumIterations(o.max_iterations);
     g.setTransformationEpsilon(o.transformation_epsilon);
     g.setCorrespondenceRandomness(o.k_neighbors);
-    Cloud aligned;
+    pcl::PointCloud<pcl::PointXYZ> aligned;
     g.align(aligned, initial.Matrix().cast<float>());
     const Eigen::Matrix4d T = g.getFinalTransformation().cast<double>();
 
@@ -61,15 +44,7 @@ class PclGicp : public RegistrationComponent<PclGicp, PclOptions> {
     gicp::FactorOptions f;
     f.max_correspondence_distance = o.max_correspondence_distance;
     const gicp::LinearSystem s = gicp::Linearize(in, Eigen::Isometry3d(T), f, threads);
-    RegistrationResult r;
-    r.converged = g.hasConverged();
-    r.iterations = g.iterations();
-    r.num_inliers = s.inliers;
-    r.inlier_fraction = static_cast<double>(s.inliers) / static_cast<double>(source.size());
-    r.final_error = s.inliers ? s.cost / static_cast<double>(s.inliers) : 0;
-    r.T_target_source = Pose::FromMatrix(T);
-    r.information = s.H;
-    return r;
+    return MakeResult(g.hasConverged(), g.iterations(), T, s, source.size());
   }
 };
 

@@ -7,7 +7,6 @@
 #include <pcl/registration/icp.h>
 #include <pcl/search/kdtree.h>
 
-#include "gicp/preprocess.h"
 #include "locforge/plugin.h"
 #include "locforge/registration.h"
 #include "pcl_common.h"
@@ -18,19 +17,12 @@ namespace {
 
 using Cloud = pcl::PointCloud<pcl::PointNormal>;
 
-// Exposes the iteration count PCL keeps protected.
-class Icp : public pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal> {
- public:
-  int iterations() const { return nr_iterations_; }
-};
+using Icp = WithIterations<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>>;
 
-Cloud::Ptr ToPcl(const gicp::Points& points, const PointCloud& original, double voxel, int k,
-                 int threads) {
-  Cloud::Ptr c(new Cloud);
-  c->resize(points.size());
-  for (size_t i = 0; i < points.size(); ++i) {
-    (*c)[i].getVector3fMap() = points[i].cast<float>();
-  }
+// Points with normals: the cloud's own (when not downsampled), else estimated.
+Cloud::Ptr WithNormals(const gicp::Points& points, const PointCloud& original, double voxel, int k,
+                       int threads) {
+  Cloud::Ptr c = ToPcl<pcl::PointNormal>(points);
   if (original.has_normals() && voxel <= 0) {
     for (size_t i = 0; i < points.size(); ++i) (*c)[i].getNormalVector3fMap() = original.normals[i];
     return c;
@@ -54,12 +46,9 @@ class IcpPlane : public RegistrationComponent<IcpPlane, PclOptions> {
   RegistrationResult Align(const PointCloud& source_cloud, const PointCloud& target_cloud,
                            const Pose& initial, int threads) const override {
     const PclOptions& o = options();
-    const gicp::Points source = gicp::VoxelDownsample(gicp::ToPoints(source_cloud), o.voxel_size);
-    const gicp::Points target = gicp::VoxelDownsample(gicp::ToPoints(target_cloud), o.voxel_size);
-    if (source.size() < 6 || target.size() < 6)
-      throw InputError("registration/icp_plane: clouds need at least 6 points");
-    const Cloud::Ptr src = ToPcl(source, source_cloud, o.voxel_size, o.k_neighbors, threads);
-    const Cloud::Ptr tgt = ToPcl(target, target_cloud, o.voxel_size, o.k_neighbors, threads);
+    const auto [source, target] = DownsampledClouds(source_cloud, target_cloud, o.voxel_size, "registration/icp_plane");
+    const Cloud::Ptr src = WithNormals(source, source_cloud, o.voxel_size, o.k_neighbors, threads);
+    const Cloud::Ptr tgt = WithNormals(target, target_cloud, o.voxel_size, o.k_neighbors, threads);
     Icp icp;
     icp.setInputSource(src);
     icp.setInputTarget(tgt);
@@ -76,15 +65,7 @@ class IcpPlane : public RegistrationComponent<IcpPlane, PclOptions> {
     Eigen::Isometry3d iso(T);
     const gicp::LinearSystem s = gicp::PointToPlaneSystem(
         source, target, normals, tree, iso, o.max_correspondence_distance, threads);
-    RegistrationResult r;
-    r.converged = icp.hasConverged();
-    r.iterations = icp.iterations();
-    r.num_inliers = s.inliers;
-    r.inlier_fraction = static_cast<double>(s.inliers) / static_cast<double>(source.size());
-    r.final_error = s.inliers ? s.cost / static_cast<double>(s.inliers) : 0;
-    r.T_target_source = Pose::FromMatrix(T);
-    r.information = s.H;
-    return r;
+    return MakeResult(icp.hasConverged(), icp.iterations(), T, s, source.size());
   }
 };
 

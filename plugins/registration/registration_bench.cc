@@ -73,8 +73,8 @@ BENCHMARK_CAPTURE(Align, pcl_gicp, "registration/pcl_gicp")->Arg(1)->Arg(2)->Uni
 BENCHMARK_CAPTURE(Align, gicp, "registration/gicp")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(Align, icp_plane, "registration/icp_plane")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Console output plus a table of ratios against pcl_gicp at 1 thread
-// (medians when repeated, else means).
+// Console output plus tables of ratios against pcl_gicp at 1 thread and of
+// each back-end's 1 vs 2 thread times (medians when repeated, else means).
 class RatioReporter : public benchmark::ConsoleReporter {
  public:
   void ReportRuns(const std::vector<Run>& runs) override {
@@ -96,6 +96,17 @@ class RatioReporter : public benchmark::ConsoleReporter {
     std::printf("\n%-32s %12s %10s\n", "benchmark", "ms", "x pcl_gicp/1");
     for (const auto& [name, ms] : times_)
       std::printf("%-32s %12.1f %10.2f\n", name.c_str(), ms, ms / base->second);
+    // One row per back-end: both thread counts as ratios to pcl_gicp/1, and
+    // its own 2-thread speed-up (time at 1 / time at 2), all from this run.
+    std::printf("\n%-12s %12s %12s %14s %14s %12s\n", "back-end", "1 thread ms", "2 threads ms",
+                "1t x pcl_gicp/1", "2t x pcl_gicp/1", "speed-up 1->2");
+    for (const char* backend : {"pcl_gicp", "gicp", "icp_plane"}) {
+      const auto one = times_.find(std::string("Align/") + backend + "/1/real_time");
+      const auto two = times_.find(std::string("Align/") + backend + "/2/real_time");
+      if (one == times_.end() || two == times_.end()) continue;
+      std::printf("%-12s %12.1f %12.1f %14.2f %14.2f %12.2f\n", backend, one->second, two->second,
+                  one->second / base->second, two->second / base->second, one->second / two->second);
+    }
   }
   bool has_aggregates_ = false;
 
