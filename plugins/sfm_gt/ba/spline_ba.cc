@@ -359,7 +359,7 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
 
   ceres::Solver::Options solver;
   const bool iterative = options.linear_solver == "iterative_schur" ||
-                         (options.linear_solver == "auto" && problem->images.size() > 2000);
+                         (options.linear_solver == "auto" && problem->images.size() > 500);
   solver.linear_solver_type = ordering ? (iterative ? ceres::ITERATIVE_SCHUR : ceres::SPARSE_SCHUR)
                                        : ceres::SPARSE_NORMAL_CHOLESKY;
   solver.preconditioner_type = ceres::SCHUR_JACOBI;

@@ -119,7 +119,7 @@ struct SplineBAOptions {
   double function_tolerance = 1e-6;
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;
-  // Linear solver: "auto" (SPARSE_SCHUR up to 2000 images, else
+  // Linear solver: "auto" (SPARSE_SCHUR up to 500 images, else
   // ITERATIVE_SCHUR with SCHUR_JACOBI), "sparse_schur", "iterative_schur".
   std::string linear_solver = "auto";
   // Ceres threads of this solve only (no process-wide state is touched).

@@ -5,6 +5,7 @@
 //
 //   locforge_spline_ba_bench [--images N] [--threads T] [--sequences S]
 //                            [--density D] [--max-depth M] [--iterations I] [--verbose 1]
+//                            [--solver auto|sparse_schur|iterative_schur]
 #include <sys/resource.h>
 
 #include <chrono>
@@ -36,8 +37,13 @@ int main(int argc, char** argv) {
   using namespace locforge::sfm;
   int images = 18000, threads = 2, sequences = 10, iterations = 50, verbose = 0;
   double density = 0.5, max_depth = 15;
+  std::string solver = "auto";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
+    if (a == "--solver") {
+      solver = argv[i + 1];
+      continue;
+    }
     const double v = std::atof(argv[i + 1]);
     if (a == "--images") images = static_cast<int>(v);
     else if (a == "--threads") threads = static_cast<int>(v);
@@ -66,15 +72,20 @@ int main(int argc, char** argv) {
   options.num_threads = threads;
   options.max_iterations = iterations;
   options.verbose = verbose != 0;
+  options.linear_solver = solver;
+  if (!options.Check()) {
+    std::fprintf(stderr, "%s\n", options.CheckMessage().c_str());
+    return 2;
+  }
   BAProblem problem = scene.initial;
   const double cpu0 = CpuSeconds();
   const SplineBAResult r = RunSplineBA(options, &problem);
   const double ba_cpu = CpuSeconds() - cpu0;
   const SceneErrors e = CompareToTruth(problem, scene.truth);
-  std::printf("| images | points | observations | threads | scene s | BA wall s | BA CPU s | iterations | reproj px (initial -> final) | "
-              "pose RMS cm / deg | peak RSS MB (after scene -> after BA) |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
-  std::printf("| %zu | %zu | %zu | %d | %.1f | %.1f | %.1f | %d%s | %.2f -> %.3f | %.2f / %.3f | %.0f -> %.0f |\n",
-              problem.images.size(), problem.points.size(), problem.observations.size(), threads, gen_s, r.seconds, ba_cpu,
+  std::printf("| images | points | observations | solver | threads | scene s | BA wall s | BA CPU s | iterations | reproj px (initial -> final) | "
+              "pose RMS cm / deg | peak RSS MB (after scene -> after BA) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("| %zu | %zu | %zu | %s | %d | %.1f | %.1f | %.1f | %d%s | %.2f -> %.3f | %.2f / %.3f | %.0f -> %.0f |\n",
+              problem.images.size(), problem.points.size(), problem.observations.size(), solver.c_str(), threads, gen_s, r.seconds, ba_cpu,
               r.iterations, r.converged ? "" : " (limit)", r.initial_mean_reproj_px, r.final_mean_reproj_px,
               100 * e.position_rms_m, e.rotation_rms_deg, rss_scene, PeakRssMb());
   std::printf("solver: %s\n", r.message.c_str());
