@@ -12,6 +12,7 @@
 #include "spline_ba.h"
 #include "stages.h"
 #include "../colmap_stages/colmap_db.h"
+#include "locforge/colmap/convert.h"
 #include "locforge/colmap/model.h"
 #include "locforge/colmap/run.h"
 #include "locforge/kapture/io.h"
@@ -416,30 +417,8 @@ void OuterLoop::WriteOutputs(const colmap::Reconstruction& model) {
   kp::WriteRecords(out_ / kp::layout::RecordsFile(kp::kSensorCamera), kp::RecordKind::kCamera, records);
   if (fs::is_directory(map_->root() / kp::layout::kRecordsData)) LinkRecordData(*map_, records, out_);
   // The SfM model: COLMAP (binary) and kapture reconstruction.
-  const fs::path final_model = out_ / "rounds" / "final" / "model";
   colmap::WriteModelBinary(model, out_ / "model");
-  std::map<colmap::ImageId, const colmap::ModelImage*> images;
-  for (const auto& image : model.images) images[image.image_id] = &image;
-  std::vector<kp::Point3d> points;
-  kp::Observations observations;
-  for (const auto& p : model.points3d) {
-    kp::Point3d q;
-    q.x = p.xyz.x();
-    q.y = p.xyz.y();
-    q.z = p.xyz.z();
-    q.r = p.color[0];
-    q.g = p.color[1];
-    q.b = p.color[2];
-    kp::ObservationsEntry entry;
-    entry.point3d_id = static_cast<int64_t>(points.size());
-    entry.keypoints_type = type_;
-    for (const auto& t : p.track) entry.features.emplace_back(images.at(t.image_id)->name, t.point2d_idx);
-    points.push_back(q);
-    observations.push_back(std::move(entry));
-  }
-  fs::create_directories(out_ / kp::layout::kReconstruction);
-  kp::WritePoints3d(out_ / kp::layout::kPoints3d, points);
-  kp::WriteObservations(out_ / kp::layout::kObservations, observations);
+  colmap::WriteKapturePoints(model, type_, out_);
   const fs::path kpts = fs::path(kp::layout::FeatureRoot(kp::FeatureKind::kKeypoints)) / type_;
   LinkTree(features_->root() / kpts, out_ / kpts);
 }
