@@ -133,24 +133,25 @@ void ParallelFor(size_t n, int threads, const Hooks& hooks, const std::function<
 }
 
 // Where the mapping platform drove: each mapping trajectory sampled every
-// metre of travel.
+// `step_m` of travel.
 using Path2d = std::vector<Eigen::Vector2d>;
-std::vector<Path2d> MappedPaths(const std::vector<Trajectory>& mapping) {
+std::vector<Path2d> MappedPaths(const std::vector<Trajectory>& mapping, double step_m) {
   std::vector<Path2d> paths;
   for (const Trajectory& t : mapping) {
     Path2d path;
     for (const PlanarState& s : t.states) {
       const Eigen::Vector2d p(s.x, s.y);
-      if (path.empty() || (p - path.back()).norm() >= 1.0) path.push_back(p);
+      if (path.empty() || (p - path.back()).norm() >= step_m) path.push_back(p);
     }
     paths.push_back(std::move(path));
   }
   return paths;
 }
 
-// The longest stretches of the mapped paths inside an area (x < split for
-// validation, x >= split for test), at least 3 m long.
-std::vector<Path2d> MappedRuns(const std::vector<Path2d>& paths, bool west, double split) {
+// The stretches of the mapped paths inside an area (x < split for
+// validation, x >= split for test) of at least `min_samples` samples (1 m apart).
+std::vector<Path2d> MappedRuns(const std::vector<Path2d>& paths, bool west, double split,
+                               size_t min_samples = 4) {
   std::vector<Path2d> runs;
   for (const Path2d& path : paths) {
     Path2d run;
@@ -158,7 +159,7 @@ std::vector<Path2d> MappedRuns(const std::vector<Path2d>& paths, bool west, doub
       const bool inside = k < path.size() && ((path[k].x() < split) == west);
       if (inside) run.push_back(path[k]);
       if (!inside || k == path.size()) {
-        if (run.size() >= 4) runs.push_back(run);
+        if (run.size() >= min_samples) runs.push_back(run);
         run.clear();
       }
     }
@@ -209,15 +210,19 @@ std::vector<Eigen::Vector2d> QueryWaypoints(const std::vector<Path2d>& runs, dou
 // start node; queries revisit a mapped stretch of their area (QueryWaypoints),
 // or walk the graph inside their area when it has none.
 Trajectory PlanTrajectory(const SceneSpec& spec, const SimOptions& o, const SequencePlan& plan,
-                          const WheelOptions& wheels, const std::vector<Path2d>& mapped,
-                          double split_x) {
+                          const WheelOptions& wheels, const std::vector<Trajectory>& mapping,
+                          const std::vector<Path2d>& mapped, double split_x) {
   std::mt19937_64 rng(Mix(plan.seed, 1));
   std::uniform_real_distribution<double> u(-1, 1);
   const WalkGraph& g = spec.walk;
   const double length = plan.duration_s * o.limits.max_speed * 1.5 + 20;
   if (plan.split == "validation" || plan.split == "test") {
-    const std::vector<Eigen::Vector2d> waypoints =
-        QueryWaypoints(MappedRuns(mapped, plan.split == "validation", split_x), length, rng);
+    // Stretches of 3 m or more (samples 1 m apart); on a very short map, any
+    // mapped stretch (samples 0.25 m apart).
+    const bool west = plan.split == "validation";
+    std::vector<Path2d> runs = MappedRuns(mapped, west, split_x);
+    if (runs.empty()) runs = MappedRuns(MappedPaths(mapping, 0.25), west, split_x, 2);
+    const std::vector<Eigen::Vector2d> waypoints = QueryWaypoints(runs, length, rng);
     if (waypoints.size() >= 2) {
       const Eigen::Vector2d first_leg = waypoints[1] - waypoints[0];
       const double yaw = std::atan2(first_leg.y(), first_leg.x()) + 0.3 * u(rng);
@@ -339,10 +344,10 @@ DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int thr
     SequenceWork w;
     w.plan = plan;
     if (plan.split != "mapping" && mapped.empty() && !mapping.empty()) {
-      mapped = MappedPaths(mapping);
+      mapped = MappedPaths(mapping, 1.0);
       split_x = QuerySplitX(spec, mapped);
     }
-    w.trajectory = PlanTrajectory(spec, o, plan, rig.wheels, mapped, split_x);
+    w.trajectory = PlanTrajectory(spec, o, plan, rig.wheels, mapping, mapped, split_x);
     if (plan.split == "mapping") mapping.push_back(w.trajectory);
     const double duration = w.trajectory.duration();
     for (size_t c = 0; c < rig.cameras.size(); ++c)
