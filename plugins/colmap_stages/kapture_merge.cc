@@ -21,17 +21,6 @@ bool SamePose(const Pose& a, const Pose& b) {
          std::abs(std::abs(a.q.dot(b.q)) - 1) <= 1e-12;
 }
 
-// Hard link when src and dst share a file system, else a copy; either way the
-// file appears under its final name only when complete.
-void LinkOrCopy(const fs::path& src, const fs::path& dst) {
-  fs::create_directories(dst.parent_path());
-  const fs::path temp = TempSibling(dst);
-  std::error_code ec;
-  fs::create_hard_link(src, temp, ec);
-  if (ec) fs::copy_file(src, temp, fs::copy_options::overwrite_existing);
-  fs::rename(temp, dst);
-}
-
 }  // namespace
 
 MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const fs::path& dst,
@@ -89,7 +78,7 @@ MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const f
         throw InputError((source.root / records_file).string(), 0, "image_path",
                          "'" + r.path + "' already comes from an earlier source");
       if (copy_records_data) {
-        LinkOrCopy(from, SafeJoin(dst / kp::layout::kRecordsData, r.path, records_file));
+        LinkOrCopyFile(from, SafeJoin(dst / kp::layout::kRecordsData, r.path, records_file));
         ++report.data_files;
       }
       records.push_back(std::move(r));

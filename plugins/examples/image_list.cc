@@ -37,24 +37,6 @@ std::vector<std::string> ListImages(const fs::path& root, const std::vector<std:
   return out;
 }
 
-// Publishes `source` at `target` atomically, as a hard link when possible.
-void LinkOrCopy(const fs::path& source, const fs::path& target) {
-  fs::create_directories(target.parent_path());
-  const fs::path temp = TempSibling(target);
-  std::error_code ec;
-  fs::create_hard_link(source, temp, ec);
-  if (ec) {
-    ec.clear();
-    fs::copy_file(source, temp, fs::copy_options::overwrite_existing, ec);
-  }
-  if (!ec) fs::rename(temp, target, ec);
-  if (ec) {
-    std::error_code ignore;
-    fs::remove(temp, ignore);
-    throw Error("cannot import " + source.string() + " to " + target.string() + ": " + ec.message());
-  }
-}
-
 }  // namespace
 
 void ImageList::Run(RunContext& ctx) {
@@ -85,7 +67,7 @@ void ImageList::Run(RunContext& ctx) {
                          f, f, image.cols / 2.0, image.rows / 2.0});
       camera = cameras.end() - 1;
     }
-    LinkOrCopy(source, RecordsDataDir(dataset) / rel);
+    LinkOrCopyFile(source, RecordsDataDir(dataset) / rel);
     records.push_back({static_cast<int64_t>(i), camera->id, rel, 0});
     ctx.Progress(i + 1, images.size(), rel);
   }

@@ -8,34 +8,13 @@
 #include "locforge/error.h"
 
 namespace locforge::sfm_gt {
-namespace {
-
-void LinkOrCopy(const fs::path& source, const fs::path& target) {
-  fs::create_directories(target.parent_path());
-  const fs::path temp = TempSibling(target);
-  std::error_code ec;
-  fs::create_hard_link(source, temp, ec);
-  if (ec) {
-    ec.clear();
-    fs::copy_file(source, temp, fs::copy_options::overwrite_existing, ec);
-  }
-  if (!ec) fs::rename(temp, target, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(temp, ignored);
-    throw Error("cannot link or copy " + source.string() + " to " + target.string() + ": " +
-                ec.message());
-  }
-}
-
-}  // namespace
 
 int64_t LinkTree(const fs::path& src, const fs::path& dst) {
   int64_t n = 0;
   if (!fs::is_directory(src)) return 0;
   for (auto it = fs::recursive_directory_iterator(src); it != fs::recursive_directory_iterator(); ++it) {
     if (!it->is_regular_file()) continue;
-    LinkOrCopy(it->path(), dst / it->path().lexically_relative(src));
+    LinkOrCopyFile(it->path(), dst / it->path().lexically_relative(src));
     ++n;
   }
   return n;
@@ -46,7 +25,7 @@ int64_t LinkRecordData(const kp::Kapture& from, const std::vector<kp::DataRecord
   int64_t n = 0;
   for (const auto& r : records) {
     const fs::path source = from.ExistingRecordDataPath(r.path, "sensors/records_camera.txt");
-    LinkOrCopy(source, SafeJoin(to / kp::layout::kRecordsData, r.path, "image_path"));
+    LinkOrCopyFile(source, SafeJoin(to / kp::layout::kRecordsData, r.path, "image_path"));
     ++n;
   }
   return n;

@@ -18,6 +18,12 @@ namespace fs = std::filesystem;
 // written, flushed, fsync'ed and renamed over `path`. Creates parent folders.
 void WriteFileAtomic(const fs::path& path, std::string_view content);
 
+// Publishes `source` at `target` atomically: a hard link when both share a
+// file system, else a copy; either way `target` appears only when complete
+// (temp sibling + rename) and no temp file is left on failure. Creates parent
+// folders; throws Error naming both paths.
+void LinkOrCopyFile(const fs::path& source, const fs::path& target);
+
 // Streams a file that appears at `path` only on Commit(); destroyed without
 // Commit() (error, exception), it removes the temp file and leaves `path` as
 // it was.

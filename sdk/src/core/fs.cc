@@ -22,6 +22,24 @@ fs::path TempSibling(const fs::path& path) {
   return path.parent_path() / name.str();
 }
 
+void LinkOrCopyFile(const fs::path& source, const fs::path& target) {
+  fs::create_directories(target.parent_path());
+  const fs::path temp = TempSibling(target);
+  std::error_code ec;
+  fs::create_hard_link(source, temp, ec);
+  if (ec) {
+    ec.clear();
+    fs::copy_file(source, temp, fs::copy_options::overwrite_existing, ec);
+  }
+  if (!ec) fs::rename(temp, target, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(temp, ignored);
+    throw Error("cannot link or copy " + source.string() + " to " + target.string() + ": " +
+                ec.message());
+  }
+}
+
 namespace {
 
 void FsyncPath(const fs::path& p) {

@@ -41,6 +41,25 @@ TEST_F(FsTest, WriteFileAtomicLeavesNoTempFile) {
   EXPECT_EQ(ReadFile(target), "");
 }
 
+TEST_F(FsTest, LinkOrCopyFilePublishesAWholeFileAndCleansUpOnFailure) {
+  const fs::path source = dir_ / "a" / "image.jpg";
+  WriteFileAtomic(source, "pixels");
+  const fs::path target = dir_ / "b" / "c" / "image.jpg";
+  LinkOrCopyFile(source, target);
+  EXPECT_EQ(ReadFile(target), "pixels");
+  EXPECT_EQ(fs::hard_link_count(target), 2u);  // same file system: a link, not a copy
+  EXPECT_EQ(Listing(target.parent_path()), std::vector<std::string>{"image.jpg"});
+  // A missing source: an error naming both paths, nothing left beside the target.
+  try {
+    LinkOrCopyFile(dir_ / "a" / "missing.jpg", dir_ / "b" / "c" / "other.jpg");
+    ADD_FAILURE() << "expected an Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.jpg"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("other.jpg"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(Listing(target.parent_path()), std::vector<std::string>{"image.jpg"});
+}
+
 TEST_F(FsTest, AtomicFileWithoutCommitKeepsOldContent) {
   const fs::path target = dir_ / "model.txt";
   WriteFileAtomic(target, "old content");
