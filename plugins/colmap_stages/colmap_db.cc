@@ -1,7 +1,10 @@
 #include "colmap_db.h"
 
 #include <set>
+#include <sstream>
 
+#include "locforge/fs.h"
+#include "locforge/kapture/io.h"
 #include "locforge/params.h"
 
 namespace locforge::colmap_stages {
@@ -110,6 +113,30 @@ void MapperParams::AddTo(std::vector<std::string>* args) const {
   AddMapperOption(args, "ba_local_max_num_iterations", ba_local_max_num_iterations);
   AddMapperOption(args, "abs_pose_max_error", abs_pose_max_error);
   AddMapperOption(args, "filter_max_reproj_error", filter_max_reproj_error);
+}
+
+int WriteRegisteredQueries(const colmap::Reconstruction& model, const kapture::Kapture& query,
+                           const std::vector<kapture::DataRecord>& records,
+                           const std::filesystem::path& out) {
+  kapture::Trajectories trajectories;
+  std::ostringstream failures;
+  failures << "# item, timestamp, device_id, reason\n";
+  int ok = 0;
+  for (const auto& r : records) {
+    if (const colmap::ModelImage* image = model.FindImageByName(r.path)) {
+      trajectories.Set(r.timestamp, r.device_id, image->CameraFromWorld());
+      ++ok;
+    } else {
+      failures << r.path << ", " << r.timestamp << ", " << r.device_id
+               << ", not registered by image_registrator\n";
+    }
+  }
+  std::filesystem::create_directories(out / "sensors");
+  kapture::WriteSensors(out / kapture::layout::kSensors, query.sensors());
+  if (!query.rigs().empty()) kapture::WriteRigs(out / kapture::layout::kRigs, query.rigs());
+  kapture::WriteTrajectories(out / kapture::layout::kTrajectories, trajectories);
+  WriteFileAtomic(out / "failures.txt", failures.str());
+  return ok;
 }
 
 }  // namespace locforge::colmap_stages

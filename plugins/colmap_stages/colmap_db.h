@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "locforge/colmap/database.h"
+#include "locforge/colmap/model.h"
 #include "locforge/kapture/kapture.h"
 
 namespace locforge::colmap_stages {
@@ -37,6 +38,14 @@ int64_t AddMatches(const kapture::Kapture& matches, const std::string& keypoints
 
 // "--Mapper.NAME VALUE" pairs.
 void AddMapperOption(std::vector<std::string>* args, const std::string& name, double value);
+
+// Writes the query poses COLMAP's image_registrator put into `model` as a
+// kapture under `out` (query sensors, rigs, trajectories.txt) and every record
+// it did not register to out/failures.txt (never replaced by another pose).
+// Returns the number registered.
+int WriteRegisteredQueries(const colmap::Reconstruction& model, const kapture::Kapture& query,
+                           const std::vector<kapture::DataRecord>& records,
+                           const std::filesystem::path& out);
 
 // Intrinsics stay fixed in every tool: --Mapper.ba_refine_{focal_length,
 // principal_point,extra_params} 0.

@@ -208,26 +208,9 @@ class ColmapRegistrator : public Stage<RegistratorOptions> {
     o.Mapper().AddTo(&args);
     const auto run = colmap::RunColmap(args, RunOptionsFor(ctx, "image_registrator", o.timeout_s));
     const colmap::Reconstruction model = colmap::ReadModel(out / "model");
-    kp::Trajectories trajectories;
-    std::ostringstream failures;
-    failures << "# item, timestamp, device_id, reason\n";
-    int ok = 0, total = 0;
-    for (const auto& r : query.ReadDataRecords(kp::kSensorCamera)) {
-      ++total;
-      const colmap::ModelImage* image = model.FindImageByName(r.path);
-      if (image) {
-        trajectories.Set(r.timestamp, r.device_id, image->CameraFromWorld());
-        ++ok;
-      } else {
-        failures << r.path << ", " << r.timestamp << ", " << r.device_id
-                 << ", not registered by image_registrator\n";
-      }
-    }
-    fs::create_directories(out / "sensors");
-    kp::WriteSensors(out / kp::layout::kSensors, query.sensors());
-    if (!query.rigs().empty()) kp::WriteRigs(out / kp::layout::kRigs, query.rigs());
-    kp::WriteTrajectories(out / kp::layout::kTrajectories, trajectories);
-    WriteFileAtomic(out / "failures.txt", failures.str());
+    const std::vector<kp::DataRecord> records = query.ReadDataRecords(kp::kSensorCamera);
+    const int total = static_cast<int>(records.size());
+    const int ok = WriteRegisteredQueries(model, query, records, out);
     WriteFileAtomic(out / "localization_stats.csv",
                     "queries,registered,colmap_seconds,seconds_per_query\n" +
                         std::to_string(total) + "," + std::to_string(ok) + "," +

@@ -154,24 +154,7 @@ void VocabTreeStage::Run(RunContext& ctx) {
   kPaperRegistrator.AddTo(&a);
   Run(ctx, a, "image_registrator");
   const colmap::Reconstruction model = colmap::ReadModel(out / "model");
-  kp::Trajectories trajectories;
-  std::ostringstream failures;
-  failures << "# item, timestamp, device_id, reason\n";
-  int ok = 0;
-  for (const auto& r : query_records) {
-    if (const auto* im = model.FindImageByName(r.path)) {
-      trajectories.Set(r.timestamp, r.device_id, im->CameraFromWorld());
-      ++ok;
-    } else {
-      failures << r.path << ", " << r.timestamp << ", " << r.device_id
-               << ", not registered by image_registrator\n";
-    }
-  }
-  fs::create_directories(out / "sensors");
-  kp::WriteSensors(out / kp::layout::kSensors, query.sensors());
-  if (!query.rigs().empty()) kp::WriteRigs(out / kp::layout::kRigs, query.rigs());
-  kp::WriteTrajectories(out / kp::layout::kTrajectories, trajectories);
-  WriteFileAtomic(out / "failures.txt", failures.str());
+  const int ok = WriteRegisteredQueries(model, query, query_records, out);
   std::ostringstream times;
   times << "step,seconds\n";
   for (const auto& [tag, s] : seconds_) times << tag << "," << FormatDouble(s) << "\n";
