@@ -139,4 +139,12 @@ int WriteRegisteredQueries(const colmap::Reconstruction& model, const kapture::K
   return ok;
 }
 
+colmap::RunOptions RunOptionsFor(RunContext& ctx, const std::string& tool, double timeout_s) {
+  colmap::RunOptions o;
+  o.log_file = ctx.output_dir() / ("colmap_" + tool + ".log");
+  o.timeout_s = timeout_s;
+  o.cancelled = [&ctx] { return ctx.cancelled(); };
+  return o;
+}
+
 }  // namespace locforge::colmap_stages

@@ -10,7 +10,9 @@
 
 #include "locforge/colmap/database.h"
 #include "locforge/colmap/model.h"
+#include "locforge/colmap/run.h"
 #include "locforge/kapture/kapture.h"
+#include "locforge/plugin.h"
 
 namespace locforge::colmap_stages {
 
@@ -46,6 +48,11 @@ void AddMapperOption(std::vector<std::string>* args, const std::string& name, do
 int WriteRegisteredQueries(const colmap::Reconstruction& model, const kapture::Kapture& query,
                            const std::vector<kapture::DataRecord>& records,
                            const std::filesystem::path& out);
+
+// How every stage of this plugin runs a colmap tool: its log in the node's
+// output folder (colmap_TOOL.log), the stage's timeout, and the host's cancel
+// (Ctrl-C) stops the child.
+colmap::RunOptions RunOptionsFor(RunContext& ctx, const std::string& tool, double timeout_s);
 
 // Intrinsics stay fixed in every tool: --Mapper.ba_refine_{focal_length,
 // principal_point,extra_params} 0.

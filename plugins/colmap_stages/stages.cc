@@ -78,13 +78,6 @@ fs::path ImagePath(const fs::path& dataset, const fs::path& out) {
   return out / "no_images";
 }
 
-colmap::RunOptions RunOptionsFor(RunContext& ctx, const std::string& tool, double timeout_s) {
-  colmap::RunOptions o;
-  o.log_file = ctx.output_dir() / ("colmap_" + tool + ".log");
-  o.timeout_s = timeout_s;
-  return o;
-}
-
 class ColmapTriangulator : public Stage<TriangulatorOptions> {
  public:
   static StageMeta Meta() {

@@ -67,10 +67,7 @@ std::vector<std::string> VocabTreeStage::Extract(RunContext& ctx, const fs::path
 
 void VocabTreeStage::Run(RunContext& ctx, const std::vector<std::string>& args,
                          const std::string& tag) {
-  colmap::RunOptions o;
-  o.log_file = ctx.output_dir() / ("colmap_" + tag + ".log");
-  o.timeout_s = options().timeout_s;
-  const auto r = colmap::RunColmap(args, o);
+  const auto r = colmap::RunColmap(args, RunOptionsFor(ctx, tag, options().timeout_s));
   ctx.Info("colmap " + args.front() + ": " + FormatDouble(r.seconds) + " s");
   seconds_[tag] = r.seconds;
 }

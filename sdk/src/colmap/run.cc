@@ -73,6 +73,16 @@ bool IsGlogError(const std::string& line) {
          std::isdigit(static_cast<unsigned char>(line[4]));
 }
 
+// SIGTERM to the child's process group, 5 s to exit, then SIGKILL; reaps the child.
+void StopProcessGroup(pid_t pid, int* status) {
+  ::kill(-pid, SIGTERM);
+  for (int i = 0; i < 50 && ::waitpid(pid, status, WNOHANG) == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ::kill(-pid, SIGKILL);
+  ::waitpid(pid, status, 0);
+}
+
 }  // namespace
 
 std::vector<std::string> ColmapErrorLines(const std::string& log, size_t max_lines) {
@@ -171,29 +181,27 @@ RunResult RunColmap(const std::vector<std::string>& args, const RunOptions& opti
     throw Error("cannot start " + command + ": " + std::strerror(rc));
   }
 
+  // Polls (20 ms) when a timeout or a cancel callback can end the wait early.
+  const bool poll = options.timeout_s > 0 || static_cast<bool>(options.cancelled);
   int status = 0;
-  bool timed_out = false;
+  bool timed_out = false, cancelled = false;
   for (;;) {
-    const pid_t w = ::waitpid(pid, &status, options.timeout_s > 0 ? WNOHANG : 0);
+    const pid_t w = ::waitpid(pid, &status, poll ? WNOHANG : 0);
     if (w == pid) break;
     if (w < 0 && errno != EINTR) throw Error("waitpid failed for " + command + ": " + std::strerror(errno));
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (options.timeout_s > 0 && elapsed > options.timeout_s && !timed_out) {
-      timed_out = true;
-      ::kill(-pid, SIGTERM);
-      // Give it 5 s to exit, then kill the group.
-      for (int i = 0; i < 50 && ::waitpid(pid, &status, WNOHANG) == 0; ++i) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      }
-      ::kill(-pid, SIGKILL);
-      ::waitpid(pid, &status, 0);
+    timed_out = options.timeout_s > 0 && elapsed > options.timeout_s;
+    cancelled = !timed_out && options.cancelled && options.cancelled();
+    if (timed_out || cancelled) {
+      StopProcessGroup(pid, &status);
       break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
+  if (cancelled) throw Cancelled();
   std::string failure;
   if (timed_out) {
     failure = "timed out after " + std::to_string(options.timeout_s) + " s";

@@ -3,6 +3,10 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <chrono>
+#include <fstream>
+#include <thread>
+
 #include "locforge/error.h"
 #include "locforge/fs.h"
 #include "testing.h"
@@ -77,6 +81,34 @@ TEST_F(RunColmapTest, TimeoutKillsTheChild) {
   options_.timeout_s = 0.3;
   const std::string e = ErrorOf([&] { RunColmap({}, options_); });
   EXPECT_NE(e.find("timed out"), std::string::npos) << e;
+}
+
+// True while `pid` is a live (not zombie) process.
+bool Alive(pid_t pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(stat, line)) return false;
+  const size_t paren = line.rfind(')');
+  return paren != std::string::npos && paren + 2 < line.size() && line[paren + 2] != 'Z';
+}
+
+TEST_F(RunColmapTest, CancelStopsTheChildAndItsChildren) {
+  // colmap stand-in with a child of its own (as a shell pipeline would have).
+  const fs::path pid_file = tmp_ / "grandchild.pid";
+  options_.executable =
+      FakeColmap("sleep 60 & echo $! > '" + pid_file.string() + "'; wait");
+  const auto start = std::chrono::steady_clock::now();
+  options_.cancelled = [&] {
+    return fs::exists(pid_file) && std::chrono::steady_clock::now() - start > std::chrono::milliseconds(300);
+  };
+  EXPECT_THROW(RunColmap({"feature_extractor"}, options_), Cancelled);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(seconds, 10.0);  // stopped, not waited for (the child sleeps 60 s)
+  const pid_t grandchild = std::stoi(ReadFile(pid_file));
+  for (int i = 0; i < 50 && Alive(grandchild); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_FALSE(Alive(grandchild)) << "pid " << grandchild;
 }
 
 TEST_F(RunColmapTest, FindsColmapThroughTheEnvironment) {

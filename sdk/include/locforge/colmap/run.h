@@ -4,6 +4,7 @@
 #define LOCFORGE_COLMAP_RUN_H_
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,12 @@ struct RunOptions {
   double timeout_s = 0;
   // The executable; empty = $LOCFORGE_COLMAP, else `colmap` searched in PATH.
   std::string executable;
+  // Polled every 20 ms while colmap runs; when it returns true the child's
+  // process group is stopped like on a timeout and RunColmap throws
+  // Cancelled. A stage passes its RunContext::cancelled() here so that
+  // Ctrl-C on the host stops a long colmap run (the child has its own
+  // process group and does not see the terminal's SIGINT). Empty = never.
+  std::function<bool()> cancelled;
 
   bool Check(std::string* why) const;
 };
@@ -35,7 +42,8 @@ std::string FindColmapExecutable(const std::string& preferred = "");
 
 // Runs `colmap args...` and waits. Throws Error when colmap cannot be found
 // ("colmap executable not found: set LOCFORGE_COLMAP or add it to PATH"),
-// cannot start, exits non-zero, dies on a signal or times out; the message
+// cannot start, exits non-zero, dies on a signal or times out, and
+// Cancelled when options.cancelled() turns true; the message
 // holds the command, the exit status, COLMAP's own last error lines
 // ("Check failed", "ERROR", glog E/F lines) and the log file path.
 RunResult RunColmap(const std::vector<std::string>& args, const RunOptions& options);
