@@ -247,7 +247,7 @@ class VerifyStage : public PerItemStage<Options> {
       pa.push_back(ka[i]);
       pb.push_back(kb[j]);
     }
-    const std::vector<int> keep = Keep(ctx, a, b, pa, pb);
+    const std::vector<int> keep = Keep(a, b, s.geometry.Find(a), s.geometry.Find(b), pa, pb);
     std::vector<k::Match> kept;
     for (int i : keep) kept.push_back(matches[i]);
     if (static_cast<int>(kept.size()) < std::max(1, this->options().min_inliers)) return;
@@ -258,10 +258,25 @@ class VerifyStage : public PerItemStage<Options> {
   }
 
  protected:
-  // Indices of the correspondences to keep.
-  virtual std::vector<int> Keep(RunContext& ctx, const std::string& a, const std::string& b,
+  // Indices of the correspondences to keep; ea / eb: the images' cameras and
+  // poses (null when neither `images` nor `query` lists the image).
+  virtual std::vector<int> Keep(const std::string& a, const std::string& b,
+                                const ImageGeometry::Entry* ea, const ImageGeometry::Entry* eb,
                                 const std::vector<Eigen::Vector2d>& pa,
                                 const std::vector<Eigen::Vector2d>& pb) = 0;
+
+  // The ports every verification stage has: matches + features in, matches
+  // out; `images` / `query` give cameras (and poses) of the two sides.
+  static StageMeta VerifyMeta(std::string name, std::string doc, std::string images_doc,
+                              uint32_t images_flags, std::string query_doc) {
+    return {"verify", std::move(name), std::move(doc),
+            {{"matches", "kapture.matches", "matches to verify"},
+             kFeaturesPort,
+             kQueryFeaturesPort,
+             {"images", "kapture.dataset", std::move(images_doc), images_flags},
+             {"query", "kapture.dataset", std::move(query_doc), LF_PORT_OPTIONAL}},
+            {kMatchesOut}};
+  }
 
   struct State {
     Features features;
@@ -321,23 +336,17 @@ struct TwoViewStageOptions {
 class TwoViewStage : public VerifyStage<TwoViewStageOptions> {
  public:
   static StageMeta Meta() {
-    return {"verify", "two_view",
-            "RANSAC two-view geometry (OpenCV USAC essential/fundamental); keeps inlier matches",
-            {{"matches", "kapture.matches", "matches to verify"},
-             kFeaturesPort,
-             kQueryFeaturesPort,
-             {"images", "kapture.dataset", "cameras of the map images (for essential matrices)", LF_PORT_OPTIONAL},
-             {"query", "kapture.dataset", "cameras of the query images", LF_PORT_OPTIONAL}},
-            {kMatchesOut}};
+    return VerifyMeta("two_view",
+                      "RANSAC two-view geometry (OpenCV USAC essential/fundamental); keeps inlier matches",
+                      "cameras of the map images (for essential matrices)", LF_PORT_OPTIONAL,
+                      "cameras of the query images");
   }
   using VerifyStage::VerifyStage;
 
  protected:
-  std::vector<int> Keep(RunContext& ctx, const std::string& a, const std::string& b,
-                        const std::vector<Eigen::Vector2d>& pa,
+  std::vector<int> Keep(const std::string& a, const std::string& b, const ImageGeometry::Entry* ea,
+                        const ImageGeometry::Entry* eb, const std::vector<Eigen::Vector2d>& pa,
                         const std::vector<Eigen::Vector2d>& pb) override {
-    const auto& g = Load(ctx).geometry;
-    const auto *ea = g.Find(a), *eb = g.Find(b);
     const bool known = ea && eb && ea->has_camera && eb->has_camera;
     const std::string& mode = options().geometry;
     if (mode == "essential" && !known)
@@ -368,23 +377,17 @@ struct EpipolarOptions {
 class KnownPoseEpipolarStage : public VerifyStage<EpipolarOptions> {
  public:
   static StageMeta Meta() {
-    return {"verify", "known_pose_epipolar",
-            "Keeps matches consistent with the epipolar geometry of the two known poses",
-            {{"matches", "kapture.matches", "matches to filter"},
-             kFeaturesPort,
-             kQueryFeaturesPort,
-             {"images", "kapture.dataset", "cameras and poses of the map images"},
-             {"query", "kapture.dataset", "cameras and poses of the query images", LF_PORT_OPTIONAL}},
-            {kMatchesOut}};
+    return VerifyMeta("known_pose_epipolar",
+                      "Keeps matches consistent with the epipolar geometry of the two known poses",
+                      "cameras and poses of the map images", 0,
+                      "cameras and poses of the query images");
   }
   using VerifyStage::VerifyStage;
 
  protected:
-  std::vector<int> Keep(RunContext& ctx, const std::string& a, const std::string& b,
-                        const std::vector<Eigen::Vector2d>& pa,
+  std::vector<int> Keep(const std::string&, const std::string&, const ImageGeometry::Entry* ea,
+                        const ImageGeometry::Entry* eb, const std::vector<Eigen::Vector2d>& pa,
                         const std::vector<Eigen::Vector2d>& pb) override {
-    const auto& g = Load(ctx).geometry;
-    const auto *ea = g.Find(a), *eb = g.Find(b);
     std::vector<int> keep;
     if (!ea || !eb || !ea->has_camera || !eb->has_camera || !ea->pose || !eb->pose) {
       if (options().keep_unknown)
