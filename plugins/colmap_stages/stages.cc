@@ -18,56 +18,43 @@ namespace {
 
 namespace kp = locforge::kapture;
 
-#define LF_DECLARE_MAPPER(O)                                                                    \
-  s.Add("min_num_matches", &O::min_num_matches, "Mapper.min_num_matches").Min(1);              \
-  s.Add("init_min_num_inliers", &O::init_min_num_inliers, "Mapper.init_min_num_inliers").Min(1); \
-  s.Add("abs_pose_min_num_inliers", &O::abs_pose_min_num_inliers,                             \
-        "Mapper.abs_pose_min_num_inliers").Min(3);                                             \
-  s.Add("abs_pose_min_inlier_ratio", &O::abs_pose_min_inlier_ratio,                           \
-        "Mapper.abs_pose_min_inlier_ratio").Range(0, 1);                                       \
-  s.Add("ba_local_max_num_iterations", &O::ba_local_max_num_iterations,                       \
-        "Mapper.ba_local_max_num_iterations").Min(0);                                          \
-  s.Add("abs_pose_max_error", &O::abs_pose_max_error, "Mapper.abs_pose_max_error (px)").Min(0.01); \
-  s.Add("filter_max_reproj_error", &O::filter_max_reproj_error,                               \
-        "Mapper.filter_max_reproj_error (px)").Min(0.01);                                      \
-  s.Add("keypoints_type", &O::keypoints_type, "keypoints type; empty = the only one");        \
-  s.Add("timeout_s", &O::timeout_s, "kill colmap after this many seconds (0: never)").Min(0).NoCacheKey();
-
-struct TriangulatorOptions {
-  int min_num_matches = kPaperTriangulator.min_num_matches;
-  int init_min_num_inliers = kPaperTriangulator.init_min_num_inliers;
-  int abs_pose_min_num_inliers = kPaperTriangulator.abs_pose_min_num_inliers;
-  double abs_pose_min_inlier_ratio = kPaperTriangulator.abs_pose_min_inlier_ratio;
-  int ba_local_max_num_iterations = kPaperTriangulator.ba_local_max_num_iterations;
-  double abs_pose_max_error = kPaperTriangulator.abs_pose_max_error;
-  double filter_max_reproj_error = kPaperTriangulator.filter_max_reproj_error;
-  std::string keypoints_type;
-  double timeout_s = 0;
-  static void Declare(ParamSchema<TriangulatorOptions>& s) { LF_DECLARE_MAPPER(TriangulatorOptions) }
+// The Mapper options of point_triangulator / image_registrator, defaulting to
+// the paper's values for that tool (kPaperTriangulator / kPaperRegistrator).
+template <const MapperParams& kDefaults>
+struct MapperOptions {
+  int min_num_matches = kDefaults.min_num_matches;
+  int init_min_num_inliers = kDefaults.init_min_num_inliers;
+  int abs_pose_min_num_inliers = kDefaults.abs_pose_min_num_inliers;
+  double abs_pose_min_inlier_ratio = kDefaults.abs_pose_min_inlier_ratio;
+  int ba_local_max_num_iterations = kDefaults.ba_local_max_num_iterations;
+  double abs_pose_max_error = kDefaults.abs_pose_max_error;
+  double filter_max_reproj_error = kDefaults.filter_max_reproj_error;
+  std::string keypoints_type;  // empty = the features' only keypoints type
+  double timeout_s = 0;        // kill colmap after this many seconds (0: never)
+  static void Declare(ParamSchema<MapperOptions>& s) {
+    using O = MapperOptions;
+    s.Add("min_num_matches", &O::min_num_matches, "Mapper.min_num_matches").Min(1);
+    s.Add("init_min_num_inliers", &O::init_min_num_inliers, "Mapper.init_min_num_inliers").Min(1);
+    s.Add("abs_pose_min_num_inliers", &O::abs_pose_min_num_inliers,
+          "Mapper.abs_pose_min_num_inliers").Min(3);
+    s.Add("abs_pose_min_inlier_ratio", &O::abs_pose_min_inlier_ratio,
+          "Mapper.abs_pose_min_inlier_ratio").Range(0, 1);
+    s.Add("ba_local_max_num_iterations", &O::ba_local_max_num_iterations,
+          "Mapper.ba_local_max_num_iterations").Min(0);
+    s.Add("abs_pose_max_error", &O::abs_pose_max_error, "Mapper.abs_pose_max_error (px)").Min(0.01);
+    s.Add("filter_max_reproj_error", &O::filter_max_reproj_error,
+          "Mapper.filter_max_reproj_error (px)").Min(0.01);
+    s.Add("keypoints_type", &O::keypoints_type, "keypoints type; empty = the only one");
+    s.Add("timeout_s", &O::timeout_s, "kill colmap after this many seconds (0: never)").Min(0).NoCacheKey();
+  }
   MapperParams Mapper() const {
     return {min_num_matches, init_min_num_inliers, abs_pose_min_num_inliers,
             abs_pose_min_inlier_ratio, ba_local_max_num_iterations, abs_pose_max_error,
             filter_max_reproj_error};
   }
 };
-
-struct RegistratorOptions {
-  int min_num_matches = kPaperRegistrator.min_num_matches;
-  int init_min_num_inliers = kPaperRegistrator.init_min_num_inliers;
-  int abs_pose_min_num_inliers = kPaperRegistrator.abs_pose_min_num_inliers;
-  double abs_pose_min_inlier_ratio = kPaperRegistrator.abs_pose_min_inlier_ratio;
-  int ba_local_max_num_iterations = kPaperRegistrator.ba_local_max_num_iterations;
-  double abs_pose_max_error = kPaperRegistrator.abs_pose_max_error;
-  double filter_max_reproj_error = kPaperRegistrator.filter_max_reproj_error;
-  std::string keypoints_type;
-  double timeout_s = 0;
-  static void Declare(ParamSchema<RegistratorOptions>& s) { LF_DECLARE_MAPPER(RegistratorOptions) }
-  MapperParams Mapper() const {
-    return {min_num_matches, init_min_num_inliers, abs_pose_min_num_inliers,
-            abs_pose_min_inlier_ratio, ba_local_max_num_iterations, abs_pose_max_error,
-            filter_max_reproj_error};
-  }
-};
+using TriangulatorOptions = MapperOptions<kPaperTriangulator>;
+using RegistratorOptions = MapperOptions<kPaperRegistrator>;
 
 // COLMAP reads the images only for point colours: the dataset's records_data
 // when present, else an empty folder (points come out grey).
