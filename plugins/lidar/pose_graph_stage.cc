@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "cloud.h"
+#include "join_consensus.h"
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/registration.h"
@@ -43,6 +44,25 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
   s.Add("loop_overlap", &O::loop_overlap, "Inlier fraction of the precise loop check").Range(0, 1);
   s.Add("loop_yaw_hypotheses", &O::loop_yaw_hypotheses,
         "Headings tried by the rough check between sequences not yet joined").Range(1, 72);
+  s.Add("join_seeds", &O::join_seeds,
+        "Joining sequences: seed keyframes nearest the sequence's start (all headings tried)").Range(1, 1000);
+  s.Add("join_seed_radius", &O::join_seed_radius, "Seed keyframes lie within this distance of the sequence's start (m)")
+      .Min(0);
+  s.Add("join_rough_error", &O::join_rough_error,
+        "Largest mean residual of the seeds' rough check (m; wrong seed loops are left to the consensus)").Min(0);
+  s.Add("join_hypotheses", &O::join_hypotheses, "Frame hypotheses verified per join attempt").Range(1, 100);
+  s.Add("join_verify", &O::join_verify, "Loops predicted by a hypothesis and tested to verify it").Range(0, 1000);
+  s.Add("join_min_support", &O::join_min_support,
+        "Distinct keyframes of a sequence whose loops must agree on its frame to join it").Range(1, 1000);
+  s.Add("join_min_verified", &O::join_min_verified,
+        "... of them with loops found where the frame hypothesis predicted them (not seeds)").Range(0, 1000);
+  s.Add("join_min_verified_fraction", &O::join_min_verified_fraction,
+        "Fraction of the loops predicted by the winning hypothesis that must be found").Range(0, 1);
+  s.Add("join_max_translation", &O::join_max_translation,
+        "Two frame hypotheses agree within this distance at their keyframes (m)").Min(1e-6);
+  s.Add("join_max_rotation", &O::join_max_rotation, "... and this rotation (deg)").Range(1e-6, 180);
+  s.Add("join_max_rival_ratio", &O::join_max_rival_ratio,
+        "Largest support of a disagreeing cluster, as a fraction of the winner's (else no join)").Range(0, 1);
   s.Add("loop_stride", &O::loop_stride, "Search loops from every n-th keyframe").Range(1, 1000);
   s.Add("loss", &O::loss, "Robust loss of loop edges").Choices({"cauchy", "huber", "none"});
   s.Add("loss_scale", &O::loss_scale, "Robust loss scale (whitened residual units)").Min(1e-6);
@@ -141,6 +161,16 @@ class Slam {
   void AddSequentialEdges();
   int AddLoopEdges();
   bool TryLoop(const Keyframe& a, const Keyframe& b);
+  // Coarse-to-fine check of a loop b -> a: the rough registration from each
+  // guess of T_ab, then the precise one from each distinct rough solution:
+  // the accepted precise results (at most one with one guess).
+  std::vector<RegistrationResult> CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
+                                            double rough_error);
+  void AddLoopEdge(const Keyframe& a, const Keyframe& b, const RegistrationResult& fine);
+  // Joins the components not yet in the first keyframe's one, when loops
+  // agree on their frame (join_consensus.h); returns the number joined.
+  int JoinComponents();
+  bool TryJoin(int A, int B);
   // Same sequence and motion segment (odometry segment, or no gap above max_scan_gap).
   bool SameSegment(const Keyframe& a, Timestamp t, const std::string& sequence) const;
   Pose MotionGuess(size_t i) const;
@@ -157,7 +187,11 @@ class Slam {
   PoseGraph graph_;
   std::set<std::pair<int, int>> accepted_;  // loop edges added
   int64_t loop_tests_ = 0;
-  std::set<std::pair<std::string, std::string>> joined_;  // sequences joined by a loop
+  // Sequences sharing a frame: sequence -> component (id of its first
+  // keyframe); all start apart and are merged by JoinComponents.
+  std::map<std::string, int> component_;
+  PoseGraph before_;  // the graph before optimisation (joined components moved into the world frame)
+  int joins_ = 0, join_attempts_ = 0, join_tests_ = 0, join_rejected_loops_ = 0;
   int sequential_fallbacks_ = 0;
   int information_fallbacks_ = 0;  // registration information unusable: fixed sigmas used
   std::map<std::string, Pose> start_poses_;
@@ -204,6 +238,7 @@ void Slam::SelectKeyframes(const std::vector<kapture::DataRecord>& scans, const 
     } else {
       graph_.nodes[kf.id] = graph_.nodes[last->id] * (odometry_ ? odometry_->Relative(last->timestamp, t) : Pose());
     }
+    component_.emplace(kf.sequence, kf.id);
     keyframes_.push_back(std::move(kf));
     last = &keyframes_.back();
   }
@@ -318,37 +353,48 @@ void Slam::AddSequentialEdges() {
   }
 }
 
-bool Slam::TryLoop(const Keyframe& a, const Keyframe& b) {
-  const Pose guess = graph_.nodes[a.id].Inverse() * graph_.nodes[b.id];
-  // Coarse: downsampled clouds, from the current estimate; across sequences
-  // (whose relative heading is unknown until a first loop joins them) from
-  // several headings, keeping the best-overlapping result.
-  const bool join = a.sequence != b.sequence && !joined_.count({a.sequence, b.sequence});
-  const int hypotheses = join ? o_.loop_yaw_hypotheses : 1;
-  RegistrationResult rough;
-  for (int h = 0; h < hypotheses; ++h) {
-    const Pose yaw(Eigen::Quaterniond(Eigen::AngleAxisd(2 * M_PI * h / hypotheses, Eigen::Vector3d::UnitZ())),
-                   Eigen::Vector3d::Zero());
-    const RegistrationResult r = backend_.Align(b.rough, a.rough, guess * yaw, ctx_.threads());
-    ctx_.Debug("pose_graph: loop " + std::to_string(a.id) + "-" + std::to_string(b.id) + " rough: converged " +
-               std::to_string(r.converged) + " overlap " + std::to_string(r.inlier_fraction) + " error " +
-               std::to_string(r.final_error) + " iterations " + std::to_string(r.iterations));
-    if (!r.converged || r.final_error > o_.loop_rough_error) continue;
-    if (!rough.converged || r.inlier_fraction > rough.inlier_fraction) rough = r;
+std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyframe& b,
+                                                const std::vector<Pose>& guesses, double rough_error) {
+  const std::string name = "pose_graph: loop " + std::to_string(a.id) + "-" + std::to_string(b.id);
+  // Coarse: downsampled clouds, from each guess; the distinct solutions
+  // passing the thresholds are kept (the best overlap of each).
+  std::vector<RegistrationResult> roughs;
+  for (const Pose& guess : guesses) {
+    const RegistrationResult r = backend_.Align(b.rough, a.rough, guess, ctx_.threads());
+    ctx_.Debug(name + " rough: converged " + std::to_string(r.converged) + " overlap " +
+               std::to_string(r.inlier_fraction) + " error " + std::to_string(r.final_error) + " iterations " +
+               std::to_string(r.iterations));
+    if (!r.converged || r.final_error > rough_error || r.inlier_fraction < o_.loop_rough_overlap) continue;
+    if ((r.T_target_source.t - guess.t).norm() > o_.loop_radius) {
+      ctx_.Debug(name + " rough result far from the guess");
+      continue;
+    }
+    bool same = false;
+    for (auto& k : roughs)
+      if ((k.T_target_source.t - r.T_target_source.t).norm() < 0.5 &&
+          RotationAngleDeg(k.T_target_source.q, r.T_target_source.q) < 10) {
+        if (r.inlier_fraction > k.inlier_fraction) k = r;
+        same = true;
+        break;
+      }
+    if (!same) roughs.push_back(r);
   }
-  auto reject = [&](const std::string& why) {
-    ctx_.Debug("pose_graph: loop " + std::to_string(a.id) + "-" + std::to_string(b.id) + " rejected: " + why);
-    return false;
-  };
-  if (!rough.converged || rough.inlier_fraction < o_.loop_rough_overlap)
-    return reject("rough overlap " + std::to_string(rough.inlier_fraction) + " error " + std::to_string(rough.final_error));
-  if ((rough.T_target_source.t - guess.t).norm() > o_.loop_radius) return reject("rough result far from the guess");
-  // Fine: full clouds from the rough result.
-  const RegistrationResult fine = backend_.Align(b.cloud, a.cloud, rough.T_target_source, ctx_.threads());
-  if (!fine.converged || fine.inlier_fraction < o_.loop_overlap)
-    return reject("fine overlap " + std::to_string(fine.inlier_fraction));
-  ctx_.Debug("pose_graph: loop " + std::to_string(a.id) + "-" + std::to_string(b.id) + " accepted: overlap " +
-             std::to_string(fine.inlier_fraction));
+  if (roughs.empty()) ctx_.Debug(name + " rejected: no rough solution");
+  // Fine: full clouds from each rough solution.
+  std::vector<RegistrationResult> out;
+  for (const auto& rough : roughs) {
+    const RegistrationResult fine = backend_.Align(b.cloud, a.cloud, rough.T_target_source, ctx_.threads());
+    if (!fine.converged || fine.inlier_fraction < o_.loop_overlap) {
+      ctx_.Debug(name + " rejected: fine overlap " + std::to_string(fine.inlier_fraction));
+      continue;
+    }
+    ctx_.Debug(name + " fine: overlap " + std::to_string(fine.inlier_fraction));
+    out.push_back(fine);
+  }
+  return out;
+}
+
+void Slam::AddLoopEdge(const Keyframe& a, const Keyframe& b, const RegistrationResult& fine) {
   PoseGraphEdge e;
   e.from = a.id;
   e.to = b.id;
@@ -358,8 +404,183 @@ bool Slam::TryLoop(const Keyframe& a, const Keyframe& b) {
   e.loss_scale = o_.loss_scale;
   e.loop = true;
   graph_.edges.push_back(e);
-  joined_.insert({a.sequence, b.sequence});
-  joined_.insert({b.sequence, a.sequence});
+  accepted_.insert({std::min(a.id, b.id), std::max(a.id, b.id)});
+}
+
+bool Slam::TryLoop(const Keyframe& a, const Keyframe& b) {
+  const Pose guess = graph_.nodes[a.id].Inverse() * graph_.nodes[b.id];
+  const std::vector<RegistrationResult> fine = CheckLoop(a, b, {guess}, o_.loop_rough_error);
+  if (fine.empty()) return false;
+  AddLoopEdge(a, b, fine.front());
+  return true;
+}
+
+int Slam::JoinComponents() {
+  int joined = 0;
+  const int anchor = component_.at(keyframes_.front().sequence);
+  for (bool progress = true; progress;) {
+    progress = false;
+    std::set<int> others;  // by first keyframe: in time order
+    for (const auto& [seq, c] : component_)
+      if (c != anchor) others.insert(c);
+    for (const int c : others)
+      if (TryJoin(anchor, c)) {
+        ++joined;
+        progress = true;  // a later sequence may overlap only this one
+      }
+  }
+  return joined;
+}
+
+// Joins component B to A (header of join_consensus.h): seed loops between
+// B's keyframes nearest their sequence's start and A's nearest keyframes
+// (the frames agree only near the common start; all headings tried), then
+// the hypotheses of T_A_B, best-supported first, each verified by the loops
+// it predicts along B; B moves into A's frame with the loops that agree.
+bool Slam::TryJoin(int A, int B) {
+  ++join_attempts_;
+  std::vector<const Keyframe*> ka, kb;
+  for (const auto& kf : keyframes_) {
+    const int c = component_.at(kf.sequence);
+    if (c == A) ka.push_back(&kf);
+    if (c == B) kb.push_back(&kf);
+  }
+  std::string name_b;
+  for (const auto& [seq, c] : component_)
+    if (c == B) name_b += (name_b.empty() ? "" : "+") + seq;
+  auto nearest_a = [&](const Eigen::Vector3d& p) -> const Keyframe* {
+    const Keyframe* best = nullptr;
+    double best_d = o_.loop_radius;
+    for (const Keyframe* a : ka) {
+      const double d = (graph_.nodes.at(a->id).t - p).norm();
+      if (d <= best_d) best_d = d, best = a;
+    }
+    return best;
+  };
+  std::vector<JoinCandidate> candidates;
+  std::vector<RegistrationResult> fines;  // parallel to candidates
+  std::set<std::pair<int, int>> tested;
+  auto test = [&](const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses, double rough_error,
+                  bool predicted) {
+    tested.insert({a.id, b.id});
+    ++join_tests_;
+    int ok = 0;
+    for (const auto& f : CheckLoop(a, b, guesses, rough_error)) {
+      JoinCandidate c;
+      c.a = a.id;
+      c.b = b.id;
+      c.T_A_B = graph_.nodes.at(a.id) * f.T_target_source * graph_.nodes.at(b.id).Inverse();
+      c.p_b = graph_.nodes.at(b.id).t;
+      c.overlap = f.inlier_fraction;
+      c.predicted = predicted;
+      candidates.push_back(c);
+      fines.push_back(f);
+      ++ok;
+    }
+    return ok;
+  };
+  // Seeds: sequences start near the same place, at an unknown heading. B's
+  // keyframes within join_seed_radius of its start p0 (its first keyframe; B's
+  // frame = A's up to a turn about p0), every loop_stride-th, nearest first;
+  // for each of loop_yaw_hypotheses turns H about p0, against the keyframe
+  // of A nearest H p_b, from the guess T_ab = T_A_a^-1 H T_B_b.
+  const Eigen::Vector3d p0 = graph_.nodes.at(kb.front()->id).t;
+  std::vector<const Keyframe*> near_start;
+  for (const Keyframe* b : kb)
+    if ((graph_.nodes.at(b->id).t - p0).norm() <= o_.join_seed_radius) near_start.push_back(b);
+  std::stable_sort(near_start.begin(), near_start.end(), [&](const Keyframe* x, const Keyframe* y) {
+    return (graph_.nodes.at(x->id).t - p0).norm() < (graph_.nodes.at(y->id).t - p0).norm();
+  });
+  int seeds = 0;
+  for (size_t i = 0; i < near_start.size() && seeds < o_.join_seeds; i += o_.loop_stride, ++seeds) {
+    const Keyframe& b = *near_start[i];
+    std::map<int, std::vector<Pose>> guesses;  // a -> guesses
+    for (int h = 0; h < o_.loop_yaw_hypotheses; ++h) {
+      const Pose turn(Eigen::Quaterniond(Eigen::AngleAxisd(2 * M_PI * h / o_.loop_yaw_hypotheses,
+                                                           Eigen::Vector3d::UnitZ())),
+                      Eigen::Vector3d::Zero());
+      const Pose H = Pose(Eigen::Quaterniond::Identity(), p0) * turn * Pose(Eigen::Quaterniond::Identity(), -p0);
+      const Keyframe* a = nearest_a(H * graph_.nodes.at(b.id).t);
+      if (a) guesses[a->id].push_back(graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b.id));
+    }
+    for (const auto& [a, g] : guesses) test(keyframes_[a], b, g, o_.join_rough_error, false);
+  }
+  JoinConsensusOptions co;
+  co.max_translation = o_.join_max_translation;
+  co.max_rotation_deg = o_.join_max_rotation;
+  co.min_support = o_.join_min_support;
+  co.min_verified = o_.join_min_verified;
+  co.max_rival_ratio = o_.join_max_rival_ratio;
+  JoinConsensus r = FindJoinConsensus(candidates, co);
+  std::ostringstream log;
+  log << "pose_graph: join " << name_b << ": " << seeds << " seeds, " << candidates.size() << " seed loops";
+  // Verification of the hypotheses, best-supported first (one per cluster):
+  // the loops each predicts along B are tested from its guess.
+  std::vector<std::pair<int, size_t>> verified;  // hypothesis (candidate), predicted loops tested
+  // Joined when the consensus is found and its hypotheses' predicted loops
+  // were found often enough (a wrong heading predicts loops that are not there).
+  auto accept = [&] {
+    if (!r.found) return false;
+    size_t tested_pred = 0, found_pred = 0;
+    for (const auto& [v, n] : verified)
+      if (HypothesesAgree(candidates[v], candidates[r.centre], co)) tested_pred += n;
+    std::set<std::pair<int, int>> pairs;
+    for (int i : r.inliers)
+      if (candidates[i].predicted) pairs.insert({candidates[i].a, candidates[i].b});
+    found_pred = pairs.size();
+    return found_pred >= o_.join_min_verified_fraction * tested_pred;
+  };
+  for (int h = 0; h < o_.join_hypotheses && !accept() && o_.join_verify > 0; ++h) {
+    int next = -1;
+    for (int i = 0; i < static_cast<int>(candidates.size()); ++i) {
+      bool seen = false;
+      for (const auto& v : verified) seen = seen || HypothesesAgree(candidates[v.first], candidates[i], co);
+      if (seen || candidates[i].predicted) continue;
+      if (next < 0 || r.supports[i] > r.supports[next] ||
+          (r.supports[i] == r.supports[next] && candidates[i].overlap > candidates[next].overlap))
+        next = i;
+    }
+    if (next < 0) break;
+    const Pose H = candidates[next].T_A_B;
+    std::vector<std::pair<const Keyframe*, const Keyframe*>> predicted;
+    for (size_t i = 0; i < kb.size(); ++i) {  // every keyframe (the seeds took every loop_stride-th)
+      const Keyframe* a = nearest_a(H * graph_.nodes.at(kb[i]->id).t);
+      if (a && !tested.count({a->id, kb[i]->id})) predicted.emplace_back(a, kb[i]);
+    }
+    // At most join_verify of them, spread along B.
+    const size_t n = std::min<size_t>(predicted.size(), o_.join_verify);
+    verified.emplace_back(next, n);
+    int ok = 0;
+    for (size_t k = 0; k < n; ++k) {
+      const auto [a, b] = predicted[k * predicted.size() / n];
+      ok += test(*a, *b, {graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b->id)}, o_.loop_rough_error,
+                 true) > 0;
+    }
+    log << "; hypothesis " << h + 1 << " (support " << r.supports[next] << "): " << ok << " of " << n
+        << " predicted loops found";
+    r = FindJoinConsensus(candidates, co);
+  }
+  log << "; consensus: support " << r.support << " (verified " << r.verified << ", rival " << r.rival_verified
+      << "), " << r.inliers.size() << " of " << candidates.size() << " loops agree";
+  if (!accept()) {
+    ctx_.Info(log.str() + ": not joined");
+    return false;
+  }
+  // B into A's frame (and its pre-optimisation copy, for the plot).
+  for (const Keyframe* b : kb) {
+    graph_.nodes[b->id] = r.T_A_B * graph_.nodes.at(b->id);
+    before_.nodes[b->id] = r.T_A_B * before_.nodes.at(b->id);
+  }
+  for (int i : r.inliers) {
+    const Keyframe& a = keyframes_[candidates[i].a];
+    const Keyframe& b = keyframes_[candidates[i].b];
+    if (!accepted_.count({std::min(a.id, b.id), std::max(a.id, b.id)})) AddLoopEdge(a, b, fines[i]);
+  }
+  join_rejected_loops_ += static_cast<int>(r.outliers.size());
+  for (auto& [seq, c] : component_)
+    if (c == B) c = A;
+  ++joins_;
+  ctx_.Info(log.str() + ": joined");
   return true;
 }
 
@@ -374,6 +595,8 @@ int Slam::AddLoopEdges() {
     for (size_t i = 0; i < j; ++i) {
       const Keyframe& a = keyframes_[i];
       if (a.sequence == b.sequence && b.travelled - a.travelled < o_.loop_min_travel) continue;
+      // Sequences not joined yet: only through JoinComponents.
+      if (component_.at(a.sequence) != component_.at(b.sequence)) continue;
       const double d = (graph_.nodes[a.id].t - pb).norm();
       if (d > o_.loop_radius) continue;
       auto& best = nearest.emplace(a.sequence, std::make_pair(1e300, -1)).first->second;
@@ -383,10 +606,7 @@ int Slam::AddLoopEdges() {
       // Failed candidates are tried again next round, from better estimates.
       if (accepted_.count({best.second, b.id})) continue;
       ++loop_tests_;
-      if (TryLoop(keyframes_[best.second], b)) {
-        accepted_.insert({best.second, b.id});
-        ++added;
-      }
+      if (TryLoop(keyframes_[best.second], b)) ++added;
     }
     ctx_.Progress(j, keyframes_.size(), "loop closures");
   }
@@ -440,13 +660,17 @@ void Slam::Run() {
   SelectKeyframes(scans, scans_root);
   ctx_.Info("pose_graph: " + std::to_string(keyframes_.size()) + " keyframes of " + std::to_string(scans.size()) + " scans");
   AddSequentialEdges();
-  const PoseGraph before = graph_;
+  before_ = graph_;
   PoseGraphSummary summary;
   PoseGraphOptions solver;
   solver.threads = ctx_.threads();
   for (int round = 0; round < o_.rounds; ++round) {
-    const int added = AddLoopEdges();
-    ctx_.Info("pose_graph: round " + std::to_string(round + 1) + ": " + std::to_string(added) + " loop edges");
+    const size_t edges = graph_.edges.size();
+    const int joined = JoinComponents();
+    AddLoopEdges();
+    const int added = static_cast<int>(graph_.edges.size() - edges);  // join loops + the others
+    ctx_.Info("pose_graph: round " + std::to_string(round + 1) + ": " + std::to_string(joined) +
+              " sequences joined, " + std::to_string(added) + " loop edges");
     const PoseGraphSummary s = Optimize(solver, &graph_);
     if (round == 0) summary.initial_cost = s.initial_cost;
     summary.final_cost = s.final_cost;
@@ -455,7 +679,7 @@ void Slam::Run() {
     if (added == 0 && round > 0) break;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  WriteOutputs(scans, before, summary, seconds);
+  WriteOutputs(scans, before_, summary, seconds);
 }
 
 void Slam::WriteOutputs(const std::vector<kapture::DataRecord>& scans, const PoseGraph& before,
@@ -541,7 +765,9 @@ void Slam::WriteOutputs(const std::vector<kapture::DataRecord>& scans, const Pos
     << ",\n  \"sequences\": " << sequences.size() << ",\n  \"sequential_edges\": "
     << graph_.edges.size() - loop_edges << ",\n  \"sequential_odometry_fallbacks\": " << sequential_fallbacks_
     << ",\n  \"loop_edges\": " << loop_edges << ",\n  \"cross_sequence_loop_edges\": " << cross
-    << ",\n  \"loop_candidates_tested\": " << loop_tests_ << ",\n  \"initial_cost\": " << summary.initial_cost
+    << ",\n  \"loop_candidates_tested\": " << loop_tests_ << ",\n  \"joins\": " << joins_
+    << ",\n  \"join_attempts\": " << join_attempts_ << ",\n  \"join_candidates_tested\": " << join_tests_
+    << ",\n  \"join_rejected_loops\": " << join_rejected_loops_ << ",\n  \"initial_cost\": " << summary.initial_cost
     << ",\n  \"final_cost\": " << summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
     << ",\n  \"information_fallbacks\": " << information_fallbacks_ << ",\n  \"map_points\": " << map.size()
     << ",\n  \"map_plane_residual\": {\"k\": " << o_.map_residual_k << ", \"radius\": " << o_.map_residual_radius

@@ -140,6 +140,23 @@ struct PoseGraphSlamOptions {
   double loop_overlap = 0.6;        // inlier fraction of the precise check
   int loop_stride = 2;              // test loops from every n-th keyframe
   int loop_yaw_hypotheses = 12;     // headings tried when joining two sequences
+  // Joining a sequence (join_consensus.h): seed loops from the keyframes
+  // nearest its start (all headings), then each hypothesis of its frame is
+  // verified by the loops it predicts elsewhere; joined when enough loops at
+  // distinct keyframes agree and no disagreeing cluster comes close.
+  int join_seeds = 8;               // seed keyframes (every loop_stride-th from the start)
+  double join_seed_radius = 8;      // m from the sequence's start, seed keyframes
+  // Largest mean residual of the seeds' rough check (m): looser than
+  // loop_rough_error, as a wrong seed loop is rejected by the consensus.
+  double join_rough_error = 1.0;
+  int join_hypotheses = 3;          // frame hypotheses verified per attempt
+  int join_verify = 12;             // predicted loops tested per hypothesis
+  int join_min_support = 3;         // distinct keyframes of the sequence whose loops agree
+  int join_min_verified = 3;        // ... of them with loops found where a hypothesis predicted them
+  double join_min_verified_fraction = 0.25;  // of the predicted loops tested for the winning hypothesis
+  double join_max_translation = 1.0;   // m, agreement of two hypotheses at their keyframes
+  double join_max_rotation = 5;        // deg, likewise
+  double join_max_rival_ratio = 0.5;   // best disagreeing cluster's support / the winner's
   std::string loss = "cauchy";      // robust loss of loop edges
   double loss_scale = 1.0;          // in whitened residual units
   double sigma_translation = 0.01;  // m, registration edges
