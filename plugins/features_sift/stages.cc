@@ -14,30 +14,16 @@ namespace {
 
 namespace k = locforge::kapture;
 
+// keypoints "SIFT" float32 x 4 (x, y, scale, orientation); descriptors
+// "RootSIFT" or "SIFT" of descriptor_dtype x 128.
+k::LocalFeatureInfos Infos(const SiftOptions& o) {
+  k::DType dtype = k::DType::kUint8;
+  k::ParseDType(o.descriptor_dtype, &dtype);
+  return k::MakeLocalFeatureInfos(o.type, "SIFT", 4, dtype, 128, "L2",
+                                  o.root_sift ? "RootSIFT" : "SIFT");
+}
 
 }  // namespace
-
-k::FeatureInfo KeypointsInfo() {
-  k::FeatureInfo info;
-  info.kind = k::FeatureKind::kKeypoints;
-  info.name = "SIFT";
-  info.dtype_name = "float32";
-  info.dtype = k::DType::kFloat32;
-  info.dsize = 4;
-  return info;
-}
-
-k::FeatureInfo DescriptorsInfo(const SiftOptions& o) {
-  k::FeatureInfo info;
-  info.kind = k::FeatureKind::kDescriptors;
-  info.name = o.root_sift ? "RootSIFT" : "SIFT";
-  info.dtype_name = o.descriptor_dtype;
-  k::ParseDType(o.descriptor_dtype, &info.dtype);
-  info.dsize = 128;
-  info.keypoints_type = o.type;
-  info.metric_type = "L2";
-  return info;
-}
 
 class SiftStage : public PerItemStage<SiftOptions> {
  public:
@@ -60,18 +46,17 @@ class SiftStage : public PerItemStage<SiftOptions> {
       throw InputError(k::layout::RecordsFile("camera"), 0, "image_path",
                        "cannot read image '" + image + "' at " + file.string());
     const SiftFeatures f = ExtractSift(gray, options());
-    const k::FeatureInfo dinfo = DescriptorsInfo(options());
+    const k::LocalFeatureInfos infos = Infos(options());
     k::WriteImageLocalFeatures(
-        ctx.output_dir(), options().type, image, KeypointsInfo(),
-        k::FeatureArray::From(k::DType::kFloat32, 4, f.keypoints), dinfo,
-        dinfo.dtype == k::DType::kUint8
+        ctx.output_dir(), options().type, image, infos,
+        k::FeatureArray::From(k::DType::kFloat32, 4, f.keypoints),
+        infos.descriptors.dtype == k::DType::kUint8
             ? k::FeatureArray::From(k::DType::kUint8, 128, DescriptorsToUint8(f.descriptors))
             : k::FeatureArray::From(k::DType::kFloat32, 128, f.descriptors));
   }
 
   void Finalize(RunContext& ctx) override {
-    k::WriteFeatureSetInfo(ctx.output_dir(), options().type, KeypointsInfo());
-    k::WriteFeatureSetInfo(ctx.output_dir(), options().type, DescriptorsInfo(options()));
+    k::WriteLocalFeatureSetInfos(ctx.output_dir(), options().type, Infos(options()));
   }
 };
 

@@ -41,16 +41,20 @@ struct Candidate {
 };
 
 // Keypoints of one pyramid level: 3x3 maxima of repeatability (a max pool of
-// stride 1, padding 1) above both thresholds.
+// stride 1, padding 1) above both thresholds. The level's input image is
+// level_w x level_h; the maps may be a pixel smaller (see OutputsFollowContract)
+// and, as in the authors' extract.py (x * W / nw with nw the level's input
+// width), positions scale with the input size, not the map size.
 // Descriptors are copied out at once (network outputs share its buffers).
 void DetectAtLevel(const cv::Mat& descriptors, const cv::Mat& reliability,
-                   const cv::Mat& repeatability, double s, int W, int H, const R2d2Options& o,
-                   std::vector<Candidate>* out, std::vector<float>* out_descriptors) {
+                   const cv::Mat& repeatability, double s, int level_w, int level_h, int W,
+                   int H, const R2d2Options& o, std::vector<Candidate>* out,
+                   std::vector<float>* out_descriptors) {
   const int h = repeatability.size[2], w = repeatability.size[3];
   const float* rep = repeatability.ptr<float>();
   const float* rel = reliability.ptr<float>();
   const float* desc = descriptors.ptr<float>();
-  const float fx = static_cast<float>(W) / w, fy = static_cast<float>(H) / h;
+  const float fx = static_cast<float>(W) / level_w, fy = static_cast<float>(H) / level_h;
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const float r = rep[y * w + x];
@@ -84,6 +88,21 @@ void DetectAtLevel(const cv::Mat& descriptors, const cv::Mat& reliability,
 }
 
 }  // namespace
+
+bool OutputsFollowContract(const std::vector<cv::Mat>& outputs, int level_h, int level_w) {
+  if (outputs.size() != 3) return false;
+  for (const cv::Mat& m : outputs)
+    if (m.dims != 4 || m.size[0] != 1 || !m.isContinuous() || m.type() != CV_32F) return false;
+  const int h = outputs[2].size[2], w = outputs[2].size[3];
+  if (outputs[0].size[1] != 128 || outputs[1].size[1] != 1 || outputs[2].size[1] != 1)
+    return false;
+  for (const cv::Mat& m : outputs)
+    if (m.size[2] != h || m.size[3] != w) return false;
+  // faster2d2 (Fast_Quad_L2Net) max-pools by 2 (floor) and upsamples by 2: an
+  // odd side loses its last pixel, in PyTorch as in OpenCV.
+  return (h == level_h || h == level_h - 1) && (w == level_w || w == level_w - 1) && h > 0 &&
+         w > 0;
+}
 
 bool ValidTypeName(const std::string& s) {
   return !s.empty() && s.find_first_of("/\\,") == std::string::npos && s != "." && s != "..";
@@ -131,11 +150,14 @@ R2d2Features ExtractR2d2(const cv::Mat& rgb, const R2d2Options& o) {
       net.forward(outputs, kOutputs);
       f.network_seconds +=
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      if (outputs.size() != 3 || outputs[0].dims != 4 || outputs[0].size[1] != 128 ||
-          outputs[2].size[2] != image.rows || outputs[2].size[3] != image.cols)
-        throw InputError(o.model, 0, "model", "outputs do not follow the R2D2 contract");
-      DetectAtLevel(outputs[0], outputs[1], outputs[2], s, W, H, o, &candidates,
-                    &candidate_descriptors);
+      if (!OutputsFollowContract(outputs, image.rows, image.cols))
+        throw InputError(o.model, 0, "model",
+                         "outputs do not follow the R2D2 contract (descriptors 1x128xhxw, "
+                         "reliability and repeatability 1x1xhxw, h x w = the input's " +
+                             std::to_string(image.rows) + "x" + std::to_string(image.cols) +
+                             " or one pixel less on an odd side)");
+      DetectAtLevel(outputs[0], outputs[1], outputs[2], s, image.cols, image.rows, W, H, o,
+                    &candidates, &candidate_descriptors);
       ++f.scales;
     }
     s /= kScaleFactor;

@@ -72,6 +72,12 @@ struct R2d2Features {
 // thread-safe). Throws InputError when the model cannot be loaded.
 R2d2Features ExtractR2d2(const cv::Mat& rgb, const R2d2Options& options);
 
+// The R2D2 contract on the network outputs {descriptors, reliability,
+// repeatability} of a level_h x level_w input: float32 1x128xhxw, 1x1xhxw,
+// 1x1xhxw with h x w the input size, or one pixel less on an odd side
+// (faster2d2's max pool by 2 then x2 upsampling floors odd sides).
+bool OutputsFollowContract(const std::vector<cv::Mat>& outputs, int level_h, int level_w);
+
 // True for a usable feature type / folder name.
 bool ValidTypeName(const std::string& s);
 

@@ -33,26 +33,10 @@ cv::Mat ReadRgb(const fs::path& dataset, const std::string& image) {
   return rgb;
 }
 
-k::FeatureInfo KeypointsInfo() {
-  k::FeatureInfo info;
-  info.kind = k::FeatureKind::kKeypoints;
-  info.name = "r2d2";
-  info.dtype_name = "float32";
-  info.dtype = k::DType::kFloat32;
-  info.dsize = 3;  // x, y (SDK convention, see r2d2.h), scale
-  return info;
-}
-
-k::FeatureInfo DescriptorsInfo(const R2d2Options& o) {
-  k::FeatureInfo info;
-  info.kind = k::FeatureKind::kDescriptors;
-  info.name = "r2d2";
-  info.dtype_name = "float32";
-  info.dtype = k::DType::kFloat32;
-  info.dsize = 128;
-  info.keypoints_type = o.type;
-  info.metric_type = "L2";
-  return info;
+// keypoints "r2d2" float32 x 3 (x, y in the SDK convention, see r2d2.h;
+// scale), descriptors float32 x 128, L2.
+k::LocalFeatureInfos R2d2Infos(const R2d2Options& o) {
+  return k::MakeLocalFeatureInfos(o.type, "r2d2", 3, k::DType::kFloat32, 128);
 }
 
 class R2d2Stage : public PerItemStage<R2d2Options> {
@@ -74,32 +58,22 @@ class R2d2Stage : public PerItemStage<R2d2Options> {
     std::snprintf(line, sizeof line, "%d keypoints, network %.3f s over %d scales", f.count(),
                   f.network_seconds, f.scales);
     ctx.Debug(image + ": " + line);
-    k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image, KeypointsInfo(),
+    k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image, R2d2Infos(options()),
                                k::FeatureArray::From(k::DType::kFloat32, 3, f.keypoints),
-                               DescriptorsInfo(options()),
                                k::FeatureArray::From(k::DType::kFloat32, 128, f.descriptors));
   }
 
   void Finalize(RunContext& ctx) override {
-    k::WriteFeatureSetInfo(ctx.output_dir(), options().type, KeypointsInfo());
-    k::WriteFeatureSetInfo(ctx.output_dir(), options().type, DescriptorsInfo(options()));
+    k::WriteLocalFeatureSetInfos(ctx.output_dir(), options().type, R2d2Infos(options()));
   }
 };
 
 // ------------------------------------------------------------ features/d2net
 
-k::FeatureInfo D2netInfo(k::FeatureKind kind, int64_t dsize, const std::string& type) {
-  k::FeatureInfo info;
-  info.kind = kind;
-  info.name = "d2net";
-  info.dtype_name = "float32";
-  info.dtype = k::DType::kFloat32;
-  info.dsize = dsize;
-  if (kind == k::FeatureKind::kDescriptors) {
-    info.keypoints_type = type;
-    info.metric_type = "L2";
-  }
-  return info;
+// keypoints "d2net" float32 x 3 (x, y, 1 / scale), descriptors float32 x
+// channels, L2.
+k::LocalFeatureInfos D2netInfos(const D2netOptions& o, int64_t channels) {
+  return k::MakeLocalFeatureInfos(o.type, "d2net", 3, k::DType::kFloat32, channels);
 }
 
 class D2netStage : public PerItemStage<D2netOptions> {
@@ -123,19 +97,15 @@ class D2netStage : public PerItemStage<D2netOptions> {
     ctx.Debug(image + ": " + line);
     const int channels = f.channels > 0 ? f.channels : ProbeChannels();
     k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image,
-                               D2netInfo(k::FeatureKind::kKeypoints, 3, options().type),
+                               D2netInfos(options(), channels),
                                k::FeatureArray::From(k::DType::kFloat32, 3, f.keypoints),
-                               D2netInfo(k::FeatureKind::kDescriptors, channels, options().type),
                                k::FeatureArray::From(k::DType::kFloat32, channels, f.descriptors));
     std::lock_guard<std::mutex> lock(mutex_);
     channels_ = channels;
   }
   void Finalize(RunContext& ctx) override {
     if (channels_ == 0) channels_ = ProbeChannels();
-    k::WriteFeatureSetInfo(ctx.output_dir(), options().type,
-                           D2netInfo(k::FeatureKind::kKeypoints, 3, options().type));
-    k::WriteFeatureSetInfo(ctx.output_dir(), options().type,
-                           D2netInfo(k::FeatureKind::kDescriptors, channels_, options().type));
+    k::WriteLocalFeatureSetInfos(ctx.output_dir(), options().type, D2netInfos(options(), channels_));
   }
 
  private:

@@ -377,6 +377,41 @@ void WriteImageLocalFeatures(const fs::path& root, const std::string& type, cons
   WriteImageFeatures(root, type, descriptors_info, image, descriptors);
 }
 
+LocalFeatureInfos MakeLocalFeatureInfos(const std::string& type, const std::string& name,
+                                        int64_t keypoint_dims, DType descriptor_dtype,
+                                        int64_t descriptor_dims, const std::string& metric,
+                                        const std::string& descriptors_name) {
+  LocalFeatureInfos infos;
+  FeatureInfo& k = infos.keypoints;
+  k.kind = FeatureKind::kKeypoints;
+  k.name = name;
+  k.dtype = DType::kFloat32;
+  k.dtype_name = DTypeName(k.dtype);
+  k.dsize = keypoint_dims;
+  FeatureInfo& d = infos.descriptors;
+  d.kind = FeatureKind::kDescriptors;
+  d.name = descriptors_name.empty() ? name : descriptors_name;
+  d.dtype = descriptor_dtype;
+  d.dtype_name = DTypeName(descriptor_dtype);
+  d.dsize = descriptor_dims;
+  d.keypoints_type = type;
+  d.metric_type = metric;
+  return infos;
+}
+
+void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
+                             const LocalFeatureInfos& infos, const FeatureArray& keypoints,
+                             const FeatureArray& descriptors) {
+  WriteImageLocalFeatures(root, type, image, infos.keypoints, keypoints, infos.descriptors,
+                          descriptors);
+}
+
+void WriteLocalFeatureSetInfos(const fs::path& root, const std::string& type,
+                               const LocalFeatureInfos& infos) {
+  WriteFeatureSetInfo(root, type, infos.keypoints);
+  WriteFeatureSetInfo(root, type, infos.descriptors);
+}
+
 void WriteMatches(const fs::path& root, const std::string& keypoints_type,
                   const std::string& image1, const std::string& image2,
                   const std::vector<Match>& matches) {

@@ -413,5 +413,47 @@ TEST(KaptureWriting, BuildsA11DatasetThatReadsBack) {
   fs::remove_all(root.parent_path());
 }
 
+TEST(KaptureWriting, LocalFeatureInfosOfAnExtractorReadBack) {
+  const fs::path root = locforge::testing::MakeTempDir("kapture_local") / "k";
+  const LocalFeatureInfos infos =
+      MakeLocalFeatureInfos("sift_u8", "SIFT", 4, DType::kUint8, 128, "L2", "RootSIFT");
+  WriteLocalFeatureSetInfos(root, "sift_u8", infos);
+  std::vector<float> kpts = {10.5f, 20.5f, 1.5f, 0.25f, 30.5f, 40.5f, 2.5f, -1.0f};
+  std::vector<uint8_t> descs(2 * 128);
+  for (size_t i = 0; i < descs.size(); ++i) descs[i] = static_cast<uint8_t>(i % 251);
+  WriteImageLocalFeatures(root, "sift_u8", "a/b.jpg", infos, FeatureArray::From(DType::kFloat32, 4, kpts),
+                          FeatureArray::From(DType::kUint8, 128, descs));
+  // One keypoint short: refused before anything is written.
+  EXPECT_THROW(WriteImageLocalFeatures(root, "sift_u8", "c.jpg", infos,
+                                       FeatureArray::From(DType::kFloat32, 4, std::vector<float>(4)),
+                                       FeatureArray::From(DType::kUint8, 128, descs)),
+               Error);
+  EXPECT_FALSE(fs::exists(FeatureFilePath(root, FeatureKind::kKeypoints, "sift_u8", "c.jpg")));
+
+  EXPECT_EQ(ReadFile(root / "reconstruction/keypoints/sift_u8/keypoints.txt"),
+            "# kapture format: 1.1\n# name, dtype, dsize\nSIFT, float32, 4\n");
+  EXPECT_EQ(ReadFile(root / "reconstruction/descriptors/sift_u8/descriptors.txt"),
+            "# kapture format: 1.1\n# name, dtype, dsize, keypoints_type, metric_type\n"
+            "RootSIFT, uint8, 128, sift_u8, L2\n");
+  Kapture k(root);
+  const FeatureSet& d = k.GetFeatureSet(FeatureKind::kDescriptors, "sift_u8");
+  EXPECT_EQ(d.info.keypoints_type, "sift_u8");
+  EXPECT_EQ(d.info.dtype, DType::kUint8);
+  const FeatureArray kr = k.ReadKeypoints("sift_u8", "a/b.jpg");
+  ASSERT_EQ(kr.rows, 2);
+  EXPECT_EQ(kr.At(1, 3), -1.0);
+  const FeatureArray dr = k.ReadDescriptors("sift_u8", "a/b.jpg");
+  ASSERT_EQ(dr.rows, 2);
+  EXPECT_EQ(dr.bytes, std::vector<uint8_t>(descs.begin(), descs.end()));
+
+  const LocalFeatureInfos f = MakeLocalFeatureInfos("r2d2", "r2d2", 3, DType::kFloat32, 128);
+  EXPECT_EQ(f.descriptors.name, "r2d2");
+  EXPECT_EQ(f.descriptors.dtype_name, "float32");
+  EXPECT_EQ(f.descriptors.metric_type, "L2");
+  EXPECT_EQ(f.keypoints.dsize, 3);
+  EXPECT_TRUE(f.keypoints.keypoints_type.empty());
+  fs::remove_all(root.parent_path());
+}
+
 }  // namespace
 }  // namespace locforge::kapture

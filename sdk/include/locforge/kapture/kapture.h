@@ -175,6 +175,26 @@ void WriteImageFeatures(const fs::path& root, const std::string& type, const Fea
 void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
                              const FeatureInfo& keypoints_info, const FeatureArray& keypoints,
                              const FeatureInfo& descriptors_info, const FeatureArray& descriptors);
+// The keypoints.txt and descriptors.txt infos of one local feature type as a
+// feature extractor writes them (features/sift, features/r2d2, features/d2net):
+// keypoints float32 x keypoint_dims named `name`; descriptors of
+// descriptor_dtype x descriptor_dims named `descriptors_name` (empty: `name`),
+// keypoints_type `type`, metric `metric`.
+struct LocalFeatureInfos {
+  FeatureInfo keypoints;
+  FeatureInfo descriptors;
+};
+LocalFeatureInfos MakeLocalFeatureInfos(const std::string& type, const std::string& name,
+                                        int64_t keypoint_dims, DType descriptor_dtype,
+                                        int64_t descriptor_dims, const std::string& metric = "L2",
+                                        const std::string& descriptors_name = "");
+// WriteImageLocalFeatures with the infos of MakeLocalFeatureInfos.
+void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
+                             const LocalFeatureInfos& infos, const FeatureArray& keypoints,
+                             const FeatureArray& descriptors);
+// Writes both <kind>.txt files of the type (WriteFeatureSetInfo twice).
+void WriteLocalFeatureSetInfos(const fs::path& root, const std::string& type,
+                               const LocalFeatureInfos& infos);
 // Writes the matches of a pair in the toolbox's order: stored under the
 // smaller image name, index columns swapped when image2 < image1.
 void WriteMatches(const fs::path& root, const std::string& keypoints_type,
