@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <map>
 #include <tuple>
@@ -56,9 +57,14 @@ uint64_t CellKey(int x, int y, int z) {
 }  // namespace
 
 PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius) {
-  // Neighbours by a grid of cells of side `radius`: the 27 cells around a
-  // point hold every point within `radius` of it.
-  const double inv = 1.0 / radius;
+  // Neighbours by a grid of cells of side h = radius / 4, searched in shells
+  // of cells around the point's (Chebyshev ring s = 0, 1, ..., 4): a point in
+  // a ring beyond s is at least s h away, so the search stops once k
+  // neighbours are within s h (the same k nearest as a search of the whole
+  // radius, at a fraction of the distance tests in a dense map).
+  constexpr int kRings = 4;
+  const double h = radius / kRings;
+  const double inv = 1.0 / h;
   auto cell = [&](const Eigen::Vector3f& p) {
     return Eigen::Vector3i(static_cast<int>(std::floor(p.x() * inv)), static_cast<int>(std::floor(p.y() * inv)),
                            static_cast<int>(std::floor(p.z() * inv)));
@@ -77,17 +83,24 @@ PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius) {
     const Eigen::Vector3f& p = map.points[i];
     const Eigen::Vector3i c = cell(p);
     near.clear();
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          const auto it = grid.find(CellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-          if (it == grid.end()) continue;
-          for (uint32_t j : it->second) {
-            if (j == i) continue;
-            const float d2 = (map.points[j] - p).squaredNorm();
-            if (d2 <= r2) near.emplace_back(d2, j);
+    for (int s = 0; s <= kRings; ++s) {
+      for (int dx = -s; dx <= s; ++dx)
+        for (int dy = -s; dy <= s; ++dy)
+          for (int dz = -s; dz <= s; ++dz) {
+            if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != s) continue;
+            const auto it = grid.find(CellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+            if (it == grid.end()) continue;
+            for (uint32_t j : it->second) {
+              if (j == i) continue;
+              const float d2 = (map.points[j] - p).squaredNorm();
+              if (d2 <= r2) near.emplace_back(d2, j);
+            }
           }
-        }
+      if (static_cast<int>(near.size()) >= k) {
+        std::nth_element(near.begin(), near.begin() + (k - 1), near.end());
+        if (near[k - 1].first <= (s * h) * (s * h)) break;
+      }
+    }
     if (static_cast<int>(near.size()) < k) {
       ++out.skipped;
       continue;

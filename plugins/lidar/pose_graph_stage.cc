@@ -167,8 +167,9 @@ class Slam {
   std::vector<RegistrationResult> CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
                                             double rough_error);
   void AddLoopEdge(const Keyframe& a, const Keyframe& b, const RegistrationResult& fine);
-  // Joins the components not yet in the first keyframe's one, when loops
-  // agree on their frame (join_consensus.h); returns the number joined.
+  // Joins components (sequences sharing a frame) when loops agree on their
+  // relative frame (join_consensus.h), until all are in the first
+  // keyframe's or no more join; returns the number of joins.
   int JoinComponents();
   bool TryJoin(int A, int B);
   // Same sequence and motion segment (odometry segment, or no gap above max_scan_gap).
@@ -192,6 +193,7 @@ class Slam {
   std::map<std::string, int> component_;
   PoseGraph before_;  // the graph before optimisation (joined components moved into the world frame)
   int joins_ = 0, join_attempts_ = 0, join_tests_ = 0, join_rejected_loops_ = 0;
+  std::map<std::pair<int, int>, std::pair<size_t, size_t>> join_failed_;  // (A, B) -> their sizes then
   int sequential_fallbacks_ = 0;
   int information_fallbacks_ = 0;  // registration information unusable: fixed sigmas used
   std::map<std::string, Pose> start_poses_;
@@ -420,14 +422,31 @@ int Slam::JoinComponents() {
   const int anchor = component_.at(keyframes_.front().sequence);
   for (bool progress = true; progress;) {
     progress = false;
-    std::set<int> others;  // by first keyframe: in time order
-    for (const auto& [seq, c] : component_)
-      if (c != anchor) others.insert(c);
-    for (const int c : others)
-      if (TryJoin(anchor, c)) {
-        ++joined;
-        progress = true;  // a later sequence may overlap only this one
+    std::set<int> components;  // by first keyframe: in time order
+    std::map<int, size_t> sizes;
+    for (const auto& kf : keyframes_) ++sizes[component_.at(kf.sequence)];
+    for (const auto& [seq, c] : component_) components.insert(c);
+    // Each component B to the anchor's, else to an earlier component (two
+    // sequences that overlap each other more than the rest join first, then
+    // together); a pair that failed is tried again only once either grew.
+    for (const int B : components) {
+      if (B == anchor) continue;
+      std::vector<int> targets = {anchor};
+      for (const int A : components)
+        if (A != anchor && A < B) targets.push_back(A);
+      for (const int A : targets) {
+        const std::pair<size_t, size_t> state(sizes[A], sizes[B]);
+        const auto failed = join_failed_.find({A, B});
+        if (failed != join_failed_.end() && failed->second == state) continue;
+        if (TryJoin(A, B)) {
+          ++joined;
+          progress = true;
+          break;
+        }
+        join_failed_[{A, B}] = state;
       }
+      if (progress) break;  // components changed: enumerate again
+    }
   }
   return joined;
 }
@@ -445,9 +464,11 @@ bool Slam::TryJoin(int A, int B) {
     if (c == A) ka.push_back(&kf);
     if (c == B) kb.push_back(&kf);
   }
-  std::string name_b;
-  for (const auto& [seq, c] : component_)
+  std::string name_a, name_b;
+  for (const auto& [seq, c] : component_) {
+    if (c == A) name_a += (name_a.empty() ? "" : "+") + seq;
     if (c == B) name_b += (name_b.empty() ? "" : "+") + seq;
+  }
   auto nearest_a = [&](const Eigen::Vector3d& p) -> const Keyframe* {
     const Keyframe* best = nullptr;
     double best_d = o_.loop_radius;
@@ -513,7 +534,7 @@ bool Slam::TryJoin(int A, int B) {
   co.max_rival_ratio = o_.join_max_rival_ratio;
   JoinConsensus r = FindJoinConsensus(candidates, co);
   std::ostringstream log;
-  log << "pose_graph: join " << name_b << ": " << seeds << " seeds, " << candidates.size() << " seed loops";
+  log << "pose_graph: join " << name_b << " to " << name_a << ": " << seeds << " seeds, " << candidates.size() << " seed loops";
   // Verification of the hypotheses, best-supported first (one per cluster):
   // the loops each predicts along B are tested from its guess.
   std::vector<std::pair<int, size_t>> verified;  // hypothesis (candidate), predicted loops tested

@@ -149,7 +149,7 @@ struct PoseGraphSlamOptions {
   // Largest mean residual of the seeds' rough check (m): looser than
   // loop_rough_error, as a wrong seed loop is rejected by the consensus.
   double join_rough_error = 1.0;
-  int join_hypotheses = 3;          // frame hypotheses verified per attempt
+  int join_hypotheses = 4;          // frame hypotheses verified per attempt
   int join_verify = 12;             // predicted loops tested per hypothesis
   int join_min_support = 3;         // distinct keyframes of the sequence whose loops agree
   int join_min_verified = 3;        // ... of them with loops found where a hypothesis predicted them
