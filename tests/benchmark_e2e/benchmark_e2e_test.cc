@@ -20,31 +20,7 @@ namespace {
 
 namespace kp = locforge::kapture;
 
-// RFC 4180: quoted cells may hold commas ("0.1m,1deg") and doubled quotes.
-std::vector<std::vector<std::string>> ReadCsv(const fs::path& file) {
-  std::vector<std::vector<std::string>> rows;
-  std::istringstream in(ReadFile(file));
-  std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> cells(1);
-    bool quoted = false;
-    for (size_t i = 0; i < line.size(); ++i) {
-      const char c = line[i];
-      if (quoted && c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-        cells.back() += '"';
-        ++i;
-      } else if (c == '"') {
-        quoted = !quoted;
-      } else if (c == ',' && !quoted) {
-        cells.emplace_back();
-      } else {
-        cells.back() += c;
-      }
-    }
-    rows.push_back(cells);
-  }
-  return rows;
-}
+using testing::ReadCsv;
 
 // Rows of summary.csv keyed by "group/split".
 std::map<std::string, std::vector<std::string>> Summary(const fs::path& report) {
@@ -72,37 +48,27 @@ int CacheEntries(const fs::path& ws, const std::string& node) {
 TEST(BenchmarkE2E, SiftDenseVladBothSolversOnTinySimulator) {
   const fs::path bin = LOCFORGE_BINARY_DIR;
   const fs::path dir = testing::MakeTempDir("benchmark_e2e");
-  const std::string env =
-      "LOCFORGE_PLUGIN_PATH='" + (bin / "lib/locforge/plugins").string() + "' ";
-  const std::string host = (bin / "bin/locforge").string();
-  const auto run = [&](const std::string& args, const std::string& log) {
-    const std::string cmd = env + host + " run " + args + " > '" + (dir / log).string() + "' 2>&1";
-    return std::system(cmd.c_str());
-  };
   // The recording: tiny preset at twice its image size (324x256 industrial):
   // 152 map images, 76 validation + 76 test queries.
-  WriteFileAtomic(dir / "sim.yaml", R"(locforge: 1
-nodes:
-  recording:
-    stage: source/simulator
-    params: {preset: tiny, seed: 0, scale: 0.125, lidar: false, masks: false}
-)");
-  ASSERT_EQ(run("'" + (dir / "sim.yaml").string() + "' --workspace '" + (dir / "sim").string() + "'",
-                "sim.log"),
-            0)
-      << ReadFile(dir / "sim.log");
-  const fs::path rec = fs::canonical(dir / "sim/nodes/recording");
+  const fs::path rec = testing::SimulateRecording(
+      bin, dir, "{preset: tiny, seed: 0, scale: 0.125, lidar: false, masks: false}");
+  ASSERT_FALSE(rec.empty()) << ReadFile(dir / "sim.log");
   const fs::path config = fs::path(LOCFORGE_SOURCE_DIR) / "configs/benchmark/sift_densevlad.yaml";
   const fs::path ws = dir / "ws";
-  const std::string common =
-      "'" + config.string() + "' --workspace '" + ws.string() + "' --threads 2" +
-      " --set map='" + rec.string() + "' --set 'map_subfolders=[.]'" +
-      " --set query='" + rec.string() + "' --set 'query_subfolders=[validation, test]'" +
-      " --set 'groups=[industrial=ind_.*, smartphone=phone_.*]'" +
-      " --set 'splits=[validation=validation/.*, test=test/.*]'" +
-      " --set vocabulary.clusters=16 --set vocabulary.sample_size=20000" +
-      " --set vocabulary.max_image_size=160 --set vocabulary.grid_step=8";
-  ASSERT_EQ(run(common + " --set top_k=10", "bench.log"), 0) << ReadFile(dir / "bench.log");
+  const std::vector<std::string> common = {
+      "run", config.string(), "--workspace", ws.string(), "--threads", "2",
+      "--set", "map=" + rec.string(), "--set", "map_subfolders=[.]",
+      "--set", "query=" + rec.string(), "--set", "query_subfolders=[validation, test]",
+      "--set", "groups=[industrial=ind_.*, smartphone=phone_.*]",
+      "--set", "splits=[validation=validation/.*, test=test/.*]",
+      "--set", "vocabulary.clusters=16", "--set", "vocabulary.sample_size=20000",
+      "--set", "vocabulary.max_image_size=160", "--set", "vocabulary.grid_step=8"};
+  const auto run = [&](const std::string& top_k, const std::string& log) {
+    std::vector<std::string> args = common;
+    args.insert(args.end(), {"--set", "top_k=" + top_k});
+    return testing::RunHost(bin, args, dir / log);
+  };
+  ASSERT_EQ(run("10", "bench.log"), 0) << ReadFile(dir / "bench.log");
 
   // Queries: every image of both query kaptures, paths prefixed by their split.
   kp::Kapture query(ws / "nodes/query");
@@ -165,7 +131,7 @@ nodes:
 
   // A second variant (fewer retrieved pairs): features and the vocabulary come
   // from the cache, the pairs and everything after them are recomputed.
-  ASSERT_EQ(run(common + " --set top_k=5", "bench2.log"), 0) << ReadFile(dir / "bench2.log");
+  ASSERT_EQ(run("5", "bench2.log"), 0) << ReadFile(dir / "bench2.log");
   for (const char* node : {"map_features", "query_features", "vocabulary", "map_global"})
     EXPECT_EQ(CacheEntries(ws, node), 1) << node;
   for (const char* node : {"map_pairs", "query_pairs", "triangulation", "pnp"})
