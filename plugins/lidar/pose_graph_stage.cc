@@ -89,7 +89,8 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
   s.Add("map_residual_radius", &O::map_residual_radius, "Neighbour search radius of that residual (m)")
       .Range(0.01, 10);
   s.Add("initial_poses", &O::initial_poses,
-        "Manual initial-pose corrections, one 'sequence x y yaw_deg' per entry");
+        "Manual initial-pose corrections, one 'sequence x y yaw_deg' per entry (start pose in the first "
+        "sequence's frame; such a sequence is not joined by loop consensus)");
   s.Add("seconds_per_unit", &O::seconds_per_unit, "Duration of one timestamp unit (s)").Range(1e-12, 1);
   LOCFORGE_LIDAR_WHEEL_PARAMS(O);
 }
@@ -240,7 +241,9 @@ void Slam::SelectKeyframes(const std::vector<kapture::DataRecord>& scans, const 
     } else {
       graph_.nodes[kf.id] = graph_.nodes[last->id] * (odometry_ ? odometry_->Relative(last->timestamp, t) : Pose());
     }
-    component_.emplace(kf.sequence, kf.id);
+    // A manual initial pose puts the sequence in the first one's frame:
+    // joined from the start (its loops are searched like any other).
+    component_.emplace(kf.sequence, corrections.count(seq) ? 0 : kf.id);
     keyframes_.push_back(std::move(kf));
     last = &keyframes_.back();
   }
