@@ -8,7 +8,9 @@
 // Each extractor first runs once on a 96x96 image (model load, allocations),
 // then `repeat` timed runs per size and thread count.
 //
-// R2D2 runs the real shipped model. D2-Net, NetVLAD, AP-GeM and DELG run the
+// SIFT (plugins/features_sift, OpenCV, on the grey image, default options)
+// is the reference. R2D2 runs the real shipped models (r2d2_WASF_N16 and,
+// when beside it, faster2d2_WASF_N16). D2-Net, NetVLAD, AP-GeM and DELG run the
 // small architecture-faithful models of testdata/onnx_models.py (generated
 // here with python3-onnx): their times measure our pre/post-processing and a
 // tiny network, NOT the cost of the authors' VGG16/ResNet101 weights.
@@ -29,6 +31,7 @@
 #include "global_descriptor.h"
 #include "locforge/fs.h"
 #include "r2d2.h"
+#include "sift.h"
 
 namespace {
 
@@ -98,9 +101,31 @@ int main(int argc, char** argv) {
                             o.min_size = 648;
                             ExtractR2d2(im, o);
                           }});
+    const std::string fast = (fs::path(r2d2).parent_path() / "faster2d2_WASF_N16.onnx").string();
+    if (fs::exists(fast)) {
+      extractors.push_back({"r2d2 (faster2d2_WASF_N16, real weights, multi-scale)",
+                            [=](const cv::Mat& im) {
+                              R2d2Options o;
+                              o.model = fast;
+                              ExtractR2d2(im, o);
+                            }});
+      extractors.push_back({"r2d2 (faster2d2_WASF_N16, real weights, single scale, longer side 648)",
+                            [=](const cv::Mat& im) {
+                              R2d2Options o;
+                              o.model = fast;
+                              o.max_size = 648;
+                              o.min_size = 648;
+                              ExtractR2d2(im, o);
+                            }});
+    }
   } else {
     std::cerr << r2d2 << " not found: R2D2 not timed\n";
   }
+  extractors.push_back({"sift (OpenCV, features/sift defaults, grey image)", [](const cv::Mat& im) {
+                          cv::Mat gray;
+                          cv::cvtColor(im, gray, cv::COLOR_RGB2GRAY);
+                          locforge::sift::ExtractSift(gray, locforge::sift::SiftOptions());
+                        }});
   if (generated) {
     const std::string d = dir.string();
     extractors.push_back({"d2net (generated tiny model, single scale)", [=](const cv::Mat& im) {
