@@ -62,7 +62,7 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
         "Two frame hypotheses agree within this distance at their keyframes (m)").Min(1e-6);
   s.Add("join_max_rotation", &O::join_max_rotation, "... and this rotation (deg)").Range(1e-6, 180);
   s.Add("join_max_rival_ratio", &O::join_max_rival_ratio,
-        "Largest support of a disagreeing cluster, as a fraction of the winner's (else no join)").Range(0, 1);
+        "Largest verified support of a disagreeing cluster, as a fraction of the winner's (else no join)").Range(0, 1);
   s.Add("loop_stride", &O::loop_stride, "Search loops from every n-th keyframe").Range(1, 1000);
   s.Add("loss", &O::loss, "Robust loss of loop edges").Choices({"cauchy", "huber", "none"});
   s.Add("loss_scale", &O::loss_scale, "Robust loss scale (whitened residual units)").Min(1e-6);

@@ -156,7 +156,7 @@ struct PoseGraphSlamOptions {
   double join_min_verified_fraction = 0.25;  // of the predicted loops tested for the winning hypothesis
   double join_max_translation = 1.0;   // m, agreement of two hypotheses at their keyframes
   double join_max_rotation = 5;        // deg, likewise
-  double join_max_rival_ratio = 0.5;   // best disagreeing cluster's support / the winner's
+  double join_max_rival_ratio = 0.5;   // best disagreeing cluster's verified support / the winner's
   std::string loss = "cauchy";      // robust loss of loop edges
   double loss_scale = 1.0;          // in whitened residual units
   double sigma_translation = 0.01;  // m, registration edges
