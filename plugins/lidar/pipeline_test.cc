@@ -30,19 +30,9 @@ TEST(LidarPipeline, TinySimulatorTrajectoryWithinCentimetres) {
   const fs::path bin = LOCFORGE_BINARY_DIR;
   const fs::path dir = testing::MakeTempDir("lidar_pipeline");
   // Two runs: the recording first (its folder is then the dataset of the rest).
-  const std::string env = "LOCFORGE_PLUGIN_PATH='" + (bin / "lib/locforge/plugins").string() + "' ";
-  const std::string host = (bin / "bin/locforge").string();
-  WriteFileAtomic(dir / "sim.yaml", R"(locforge: 1
-nodes:
-  recording:
-    stage: source/simulator
-    params: {preset: tiny, seed: 0, masks: false, scale: 0.03}
-)");
-  ASSERT_EQ(std::system((env + host + " run '" + (dir / "sim.yaml").string() + "' --workspace '" +
-                         (dir / "ws").string() + "' > '" + (dir / "sim.log").string() + "' 2>&1").c_str()),
-            0)
-      << ReadFile(dir / "sim.log");
-  const fs::path dataset = fs::canonical(dir / "ws/nodes/recording");
+  const fs::path dataset =
+      testing::SimulateRecording(bin, dir, "{preset: tiny, seed: 0, masks: false, scale: 0.03}");
+  ASSERT_FALSE(dataset.empty()) << ReadFile(dir / "sim.log");
   const std::string pipeline = R"(locforge: 1
 vars:
   dataset: ""
@@ -60,9 +50,9 @@ nodes:
     params: {reference: "${dataset}", alignment: first}
 )";
   WriteFileAtomic(dir / "gt.yaml", pipeline);
-  ASSERT_EQ(std::system((env + host + " run '" + (dir / "gt.yaml").string() + "' --workspace '" +
-                         (dir / "ws").string() + "' --set dataset='" + dataset.string() + "' > '" +
-                         (dir / "gt.log").string() + "' 2>&1").c_str()),
+  ASSERT_EQ(testing::RunHost(bin, {"run", (dir / "gt.yaml").string(), "--workspace", (dir / "ws").string(),
+                                   "--set", "dataset=" + dataset.string()},
+                              dir / "gt.log"),
             0)
       << ReadFile(dir / "gt.log");
   const std::string metrics = ReadFile(dir / "ws/nodes/eval/metrics.json");
@@ -86,20 +76,11 @@ nodes:
 TEST(LidarPipeline, CalibLidarToLidarRecoversTheExtrinsicFromAnOffsetStart) {
   const fs::path bin = LOCFORGE_BINARY_DIR;
   const fs::path dir = testing::MakeTempDir("lidar_calib");
-  const std::string env = "LOCFORGE_PLUGIN_PATH='" + (bin / "lib/locforge/plugins").string() + "' ";
-  const std::string host = (bin / "bin/locforge").string();
-  WriteFileAtomic(dir / "sim.yaml", R"(locforge: 1
-nodes:
-  recording:
-    stage: source/simulator
-    params: {preset: small, seed: 0, scale: 0.01, masks: false, mapping_sequences: 1, validation_sequences: 0,
-             test_sequences: 0, duration_scale: 0.15}
-)");
-  ASSERT_EQ(std::system((env + host + " run '" + (dir / "sim.yaml").string() + "' --workspace '" +
-                         (dir / "ws").string() + "' > '" + (dir / "sim.log").string() + "' 2>&1").c_str()),
-            0)
-      << ReadFile(dir / "sim.log");
-  const fs::path dataset = fs::canonical(dir / "ws/nodes/recording");
+  const fs::path dataset = testing::SimulateRecording(
+      bin, dir,
+      "{preset: small, seed: 0, scale: 0.01, masks: false, mapping_sequences: 1, validation_sequences: 0, "
+      "test_sequences: 0, duration_scale: 0.15}");
+  ASSERT_FALSE(dataset.empty()) << ReadFile(dir / "sim.log");
   WriteFileAtomic(dir / "calib.yaml", R"(locforge: 1
 vars:
   dataset: ""
@@ -111,9 +92,9 @@ nodes:
     stage: calib/lidar_to_lidar
     params: {dataset: "${dataset}", initial_offset: [-0.06, 0.05, -0.03, -2.0, 1.0, -3.0]}
 )");
-  ASSERT_EQ(std::system((env + host + " run '" + (dir / "calib.yaml").string() + "' --workspace '" +
-                         (dir / "ws").string() + "' --set dataset='" + dataset.string() + "' > '" +
-                         (dir / "calib.log").string() + "' 2>&1").c_str()),
+  ASSERT_EQ(testing::RunHost(bin, {"run", (dir / "calib.yaml").string(), "--workspace",
+                                   (dir / "ws").string(), "--set", "dataset=" + dataset.string()},
+                              dir / "calib.log"),
             0)
       << ReadFile(dir / "calib.log");
   auto T_platform = [](const fs::path& root, const std::string& id) {
@@ -150,14 +131,14 @@ TEST(LidarPipeline, BalmIndoorKeyframesAgreeWithReferenceLoopsAtRevisitsCrispMap
   LOCFORGE_SHARED_PATH_OR_SKIP(data, "data/lidar/balm_indoor");
   const fs::path bin = LOCFORGE_BINARY_DIR;
   const fs::path dir = testing::MakeTempDir("lidar_balm");
-  const std::string env = "LOCFORGE_PLUGIN_PATH='" + (bin / "lib/locforge/plugins").string() + "' ";
-  const std::string cmd = env + (bin / "bin/locforge").string() + " run '" + LOCFORGE_SOURCE_DIR +
-                          "/configs/gt/lidar_keyframes.yaml' --workspace '" + (dir / "ws").string() +
-                          "' --set scans='" + (data / "scans").string() + "' --set poses='" +
-                          (data / "reference_poses_tum.txt").string() +
-                          "' --set 'slam.registration_params=[voxel_size=0.3]' > '" + (dir / "run.log").string() +
-                          "' 2>&1";
-  ASSERT_EQ(std::system(cmd.c_str()), 0) << ReadFile(dir / "run.log");
+  ASSERT_EQ(testing::RunHost(bin,
+                              {"run", std::string(LOCFORGE_SOURCE_DIR) + "/configs/gt/lidar_keyframes.yaml",
+                               "--workspace", (dir / "ws").string(), "--set", "scans=" + (data / "scans").string(),
+                               "--set", "poses=" + (data / "reference_poses_tum.txt").string(), "--set",
+                               "slam.registration_params=[voxel_size=0.3]"},
+                              dir / "run.log"),
+            0)
+      << ReadFile(dir / "run.log");
   const std::string metrics = ReadFile(dir / "ws/nodes/eval/metrics.json");
   const double ate = JsonNumber(metrics, "ape_translation_m", "rmse");
   const double rot = JsonNumber(metrics, "ape_rotation_deg", "rmse");
