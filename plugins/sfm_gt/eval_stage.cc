@@ -32,6 +32,7 @@ std::string LabelOf(const fs::path& input) {
 
 struct Metrics {
   Accumulator position_m, rotation_deg, focal_percent, principal_point_px, camera_rotation_deg;
+  Accumulator position_raw_m, position_sim3_m;  // no alignment; Sim(3) alignment
   int cameras = 0;
 };
 
@@ -54,6 +55,37 @@ Pose AlignPoses(const std::vector<Pose>& est, const std::vector<Pose>& ref) {
   return Pose(Eigen::Quaterniond(R), t);
 }
 
+struct Sim3Alignment {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  double scale = 1;
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();  // c_ref = scale * R * c_est + t
+};
+
+// Sim(3) aligning estimated camera centres to reference ones: rotation as in
+// AlignPoses, then the scale s and translation t minimising
+// sum |s R c_est + t - c_ref|^2 (closed form for a fixed R).
+Sim3Alignment AlignSim3(const std::vector<Pose>& est, const std::vector<Pose>& ref) {
+  Sim3Alignment a;
+  a.R = AlignPoses(est, ref).R();
+  if (est.empty()) return a;
+  Eigen::Vector3d me = Eigen::Vector3d::Zero(), mr = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < est.size(); ++i) {
+    me += est[i].Center();
+    mr += ref[i].Center();
+  }
+  me /= static_cast<double>(est.size());
+  mr /= static_cast<double>(est.size());
+  double num = 0, den = 0;
+  for (size_t i = 0; i < est.size(); ++i) {
+    const Eigen::Vector3d x = a.R * (est[i].Center() - me);
+    num += x.dot(ref[i].Center() - mr);
+    den += x.squaredNorm();
+  }
+  a.scale = den > 0 ? num / den : 1.0;
+  a.t = mr - a.scale * a.R * me;
+  return a;
+}
+
 void CalibrationEvalStage::Run(RunContext& ctx) {
   const auto& o = options();
   const CameraGroups groups = CameraGroups::Parse(o.groups);
@@ -70,7 +102,9 @@ void CalibrationEvalStage::Run(RunContext& ctx) {
   group_names.push_back("all");
 
   TextTable table;
+  // position/rotation RMS: after the `alignment` (SE(3) by default).
   table.header = {"estimate", "cameras", "images", "position RMS (cm)", "rotation RMS (deg)",
+                  "position RMS no alignment (cm)", "position RMS Sim(3) (cm)", "Sim(3) scale - 1 (%)",
                   "focal error RMS (%)", "focal error max (%)", "principal point RMS (px)",
                   "camera rotation RMS (deg)", "camera rotation max (deg)"};
   TextTable per_camera;
@@ -94,23 +128,26 @@ void CalibrationEvalStage::Run(RunContext& ctx) {
       throw InputError((inputs[e] / kp::layout::kTrajectories).string(), 0, "trajectories",
                        "no camera pose shares a (timestamp, device) with " + o.reference);
     Pose T_ref_est;
-    if (o.alignment == "se3") {
-      std::vector<Pose> a, b;
-      for (const auto& p : pairs) {
-        a.push_back(p.est);
-        b.push_back(p.ref);
-      }
-      T_ref_est = AlignPoses(a, b);
+    std::vector<Pose> a, b;
+    for (const auto& p : pairs) {
+      a.push_back(p.est);
+      b.push_back(p.ref);
     }
+    if (o.alignment == "se3") T_ref_est = AlignPoses(a, b);
+    const Sim3Alignment sim3 = AlignSim3(a, b);
     std::map<std::string, Metrics> metrics;       // group -> metrics
     std::map<std::string, Metrics> camera_poses;  // camera -> pose metrics
     for (const auto& p : pairs) {
       const Pose est = p.est * T_ref_est.Inverse();  // T_C_refworld
       const double dp = (est.Center() - p.ref.Center()).norm();
       const double dr = RotationAngleDeg(est.q, p.ref.q);
+      const double dp_raw = (p.est.Center() - p.ref.Center()).norm();
+      const double dp_sim3 = (sim3.scale * sim3.R * p.est.Center() + sim3.t - p.ref.Center()).norm();
       for (const std::string& g : {groups.Of(p.device), std::string("all")}) {
         metrics[g].position_m.Add(dp);
         metrics[g].rotation_deg.Add(dr);
+        metrics[g].position_raw_m.Add(dp_raw);
+        metrics[g].position_sim3_m.Add(dp_sim3);
       }
       camera_poses[p.device].position_m.Add(dp);
       camera_poses[p.device].rotation_deg.Add(dr);
@@ -144,7 +181,9 @@ void CalibrationEvalStage::Run(RunContext& ctx) {
       if (!m.position_m.n && !m.cameras) continue;
       table.rows.push_back({label + (g == "all" ? "" : " / " + g), std::to_string(m.cameras),
                             std::to_string(m.position_m.n), Fixed(100 * m.position_m.Rms(), 2),
-                            Fixed(m.rotation_deg.Rms(), 3), Fixed(m.focal_percent.Rms(), 3),
+                            Fixed(m.rotation_deg.Rms(), 3), Fixed(100 * m.position_raw_m.Rms(), 2),
+                            Fixed(100 * m.position_sim3_m.Rms(), 2), Fixed(100 * (sim3.scale - 1), 3),
+                            Fixed(m.focal_percent.Rms(), 3),
                             Fixed(m.focal_percent.max, 3), Fixed(m.principal_point_px.Rms(), 2),
                             Fixed(m.camera_rotation_deg.Rms(), 3), Fixed(m.camera_rotation_deg.max, 3)});
     }
@@ -154,7 +193,9 @@ void CalibrationEvalStage::Run(RunContext& ctx) {
       "Camera poses: per image, against the reference pose of the same (timestamp, camera); " +
       std::string(o.alignment == "se3" ? "after one SE(3) alignment per estimate (rotation: chordal mean of the per-image rotation differences; translation: mean centre difference)"
                                        : "without alignment") +
-      ". Focal error: mean of fx and fy relative errors. Camera rotation: angle between the "
+      "; also without any alignment (the LiDAR half fixes the first pose of the first sequence to the "
+      "reference's frame) and after one Sim(3) alignment of the camera centres (rotation as for SE(3), "
+      "then least-squares scale and translation; its scale - 1 is listed). Focal error: mean of fx and fy relative errors. Camera rotation: angle between the "
       "estimated and reference rotation of T_camera_rig (rigs.txt).\n\n";
   WriteFileAtomic(out / "calibration.md", "# " + o.title + "\n\n" + note + table.Markdown() +
                                               "\n## Per camera\n\n" + per_camera.Markdown());

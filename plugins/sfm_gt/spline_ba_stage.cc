@@ -28,6 +28,7 @@ struct State {
   struct CameraState {
     Camera camera;
     std::optional<Pose> T_cam_rig;  // absent when the camera is in no rig
+    double time_offset_s = 0;       // clock offset (estimate_time_offsets), carried across rounds
   };
   struct ImageState {
     std::string device;
@@ -92,6 +93,7 @@ sfm::BAProblem BuildProblem(const colmap::Reconstruction& model, const State& st
     s.T_body_camera = cs.T_cam_rig ? cs.T_cam_rig->Inverse() : Pose();
     s.calibrate_intrinsics = o.calibrate_intrinsics;
     s.calibrate_rotation = o.calibrate_rotations && cs.T_cam_rig.has_value();
+    s.time_offset_s = cs.time_offset_s;
     sensor_index[id] = static_cast<int>(problem.sensors.size());
     index->sensor_ids.push_back(id);
     problem.sensors.push_back(std::move(s));
@@ -307,6 +309,8 @@ void OuterLoop::Run() {
     ba.refine_principal_point = o_.refine_principal_point;
     ba.cauchy_scale_px = o_.cauchy_scale_px;
     ba.max_iterations = o_.max_iterations;
+    ba.estimate_time_offsets = o_.estimate_time_offsets;
+    ba.max_time_offset_s = o_.max_time_offset_s;
     ba.num_threads = ctx_.threads();
     if (!ba.Check()) throw ParamError("spline bundle adjustment options: " + ba.CheckMessage());
     const auto t_ba = Clock::now();
@@ -321,6 +325,7 @@ void OuterLoop::Run() {
     for (size_t s = 0; s < problem.sensors.size(); ++s) {
       auto& cs = state_.cameras.at(index.sensor_ids[s]);
       cs.camera = problem.sensors[s].camera;
+      cs.time_offset_s = problem.sensors[s].time_offset_s;
       if (cs.T_cam_rig) cs.T_cam_rig = problem.sensors[s].T_body_camera.Inverse();
     }
     // The fitted splines are the output; every round starts its splines (and
@@ -373,6 +378,19 @@ void OuterLoop::Run() {
                       " after " + std::to_string(rounds_done) + " rounds; total change from the input poses: " +
                       Fixed(100 * total.position_m, 2) + " cm, " + Fixed(total.rotation_deg, 3) + " deg RMS.\n");
   WriteFileAtomic(out_ / "rounds.csv", rounds_.Csv());
+  if (o_.estimate_time_offsets) {
+    // Estimated clock offset of each camera: its images are tied to the
+    // spline at timestamp + offset.
+    TextTable offsets;
+    offsets.header = {"camera", "time offset (ms)"};
+    std::string line = "estimated clock offsets (ms):";
+    for (const auto& [id, cs] : state_.cameras) {
+      offsets.rows.push_back({id, Fixed(1e3 * cs.time_offset_s, 3)});
+      line += " " + id + " " + Fixed(1e3 * cs.time_offset_s, 2);
+    }
+    WriteFileAtomic(out_ / "time_offsets.csv", offsets.Csv());
+    ctx_.Info(line);
+  }
   std::ostringstream json;
   json << "{\n  \"rounds\": " << rounds_done << ",\n  \"converged\": " << (converged ? "true" : "false")
        << ",\n  \"images\": " << model.images.size() << ",\n  \"points\": " << model.points3d.size()

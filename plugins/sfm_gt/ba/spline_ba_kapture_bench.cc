@@ -1,0 +1,264 @@
+// Time and memory of the spline bundle adjustment on a problem built from a
+// real recording's geometry: the image timestamps, cameras, rig and true
+// per-image poses of a kapture recording (e.g. the simulator's `large`
+// preset) and the platform trajectories of its LiDAR SLAM (slam/pose_graph
+// output), with SYNTHETIC landmarks and observations (features cannot be
+// extracted from the 1 %-resolution images of a LiDAR-only large run):
+//
+//  * cameras: the recording's intrinsics multiplied by --intrinsics-scale
+//    (100 gives the full-resolution 2600x2000 / 2200x2900 cameras of a
+//    recording simulated at scale 0.01), extrinsics from rigs.txt;
+//  * per image, --seeds landmarks at a random pixel and a depth uniform in
+//    [--min-depth, --max-depth] m of the TRUE camera pose; each landmark is
+//    observed by every image whose true centre lies within --max-depth of it
+//    (grid of camera centres), that sees it in front within the image, and
+//    whose viewing ray differs by < --max-angle deg from the seed's; tracks
+//    longer than --max-track are subsampled (the seed kept), tracks < 2 dropped;
+//  * observations: true projection + N(0, --pixel-noise^2) per coordinate;
+//  * start: image poses and platform trajectories of the SLAM output, each
+//    sequence rigidly aligned to the truth (the SLAM frame is its own and
+//    some joins of the large run failed), true calibration, landmarks +
+//    N(0, 5 cm) per coordinate.
+// Prints the problem size, BA wall/CPU time, peak RSS and the image pose
+// errors against the truth after an SE(3) (Umeyama) alignment (the SLAM frame
+// is its own).
+//
+//   locforge_spline_ba_kapture_bench --recording DIR --slam DIR [--seeds N] [--max-track N]
+//       [--threads T] [--iterations I] [--intrinsics-scale S] [--solver auto|...]
+//       [--trajectory-sigma-m M] [--trajectory-sigma-deg D]  (the spline-to-LiDAR gauge prior)
+#include <sys/resource.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <random>
+#include <string>
+#include <unordered_map>
+
+#include "locforge/kapture/io.h"
+#include "spline_ba.h"
+#include "synthetic.h"
+
+namespace {
+
+namespace kp = locforge::kapture;
+using locforge::Pose;
+using namespace locforge::sfm;
+
+double PeakRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // Linux: kilobytes
+}
+
+double CpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec + 1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
+struct Options {
+  std::string recording, slam, solver = "auto";
+  int seeds = 10, max_track = 10, threads = 2, iterations = 50;
+  double intrinsics_scale = 100, min_depth = 1.5, max_depth = 12, max_angle_deg = 45, pixel_noise = 0.5;
+  double seconds_per_unit = 1e-6, sequence_gap_s = 2.0;
+  double trajectory_sigma_m = -1, trajectory_sigma_deg = -1;  // < 0: SplineBAOptions defaults
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i], v = argv[i + 1];
+    if (a == "--recording") o.recording = v;
+    else if (a == "--slam") o.slam = v;
+    else if (a == "--solver") o.solver = v;
+    else if (a == "--seeds") o.seeds = std::atoi(v.c_str());
+    else if (a == "--max-track") o.max_track = std::atoi(v.c_str());
+    else if (a == "--threads") o.threads = std::atoi(v.c_str());
+    else if (a == "--iterations") o.iterations = std::atoi(v.c_str());
+    else if (a == "--intrinsics-scale") o.intrinsics_scale = std::atof(v.c_str());
+    else if (a == "--min-depth") o.min_depth = std::atof(v.c_str());
+    else if (a == "--max-depth") o.max_depth = std::atof(v.c_str());
+    else if (a == "--max-angle") o.max_angle_deg = std::atof(v.c_str());
+    else if (a == "--pixel-noise") o.pixel_noise = std::atof(v.c_str());
+    else if (a == "--trajectory-sigma-m") o.trajectory_sigma_m = std::atof(v.c_str());
+    else if (a == "--trajectory-sigma-deg") o.trajectory_sigma_deg = std::atof(v.c_str());
+    else {
+      std::fprintf(stderr, "unknown option %s\n", a.c_str());
+      return 2;
+    }
+  }
+  if (o.recording.empty() || o.slam.empty()) {
+    std::fprintf(stderr, "usage: %s --recording DIR --slam DIR [options, see the source]\n", argv[0]);
+    return 2;
+  }
+  const auto t_start = std::chrono::steady_clock::now();
+  const kp::Sensors sensors = kp::ReadSensors(o.recording + "/sensors/sensors.txt");
+  const kp::Rigs rigs = kp::ReadRigs(o.recording + "/sensors/rigs.txt");
+  const kp::Trajectories truth_traj = kp::ReadTrajectories(o.recording + "/sensors/trajectories.txt");
+  const kp::Trajectories slam_traj = kp::ReadTrajectories(o.slam + "/sensors/trajectories.txt");
+
+  BAProblem truth, init;
+  // Platform trajectories: the SLAM rig poses, split at gaps.
+  std::vector<std::pair<double, Pose>> rig;  // (seconds, T_world_body)
+  for (const auto& [key, pose] : slam_traj.poses)
+    if (key.second == "rig") rig.push_back({key.first * o.seconds_per_unit, pose.Inverse()});
+  std::sort(rig.begin(), rig.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (size_t i = 0; i < rig.size(); ++i) {
+    if (i == 0 || rig[i].first - rig[i - 1].first > o.sequence_gap_s) init.trajectories.emplace_back();
+    init.trajectories.back().times_s.push_back(rig[i].first);
+    init.trajectories.back().T_world_body.push_back(rig[i].second);
+  }
+  truth.trajectories = init.trajectories;  // not compared
+  // Cameras (intrinsics scaled to full resolution) with their rig extrinsics.
+  std::map<std::string, int> sensor_index;
+  for (const kp::Sensor& s : sensors.list()) {
+    if (!s.IsCamera() || !s.camera) continue;
+    const kp::Rig* r = rigs.RigOf(s.id);
+    if (!r) continue;
+    BAProblem::Sensor bs;
+    bs.camera = *s.camera;
+    bs.camera.width = static_cast<int>(std::lround(bs.camera.width * o.intrinsics_scale));
+    bs.camera.height = static_cast<int>(std::lround(bs.camera.height * o.intrinsics_scale));
+    for (double& p : bs.camera.params) p *= o.intrinsics_scale;  // PINHOLE-type: all params are pixels
+    bs.T_body_camera = r->Find(s.id)->sensor_from_rig.Inverse();
+    sensor_index[s.id] = static_cast<int>(init.sensors.size());
+    init.sensors.push_back(bs);
+  }
+  truth.sensors = init.sensors;
+  // Images: every camera pose of the truth that the SLAM output also has.
+  for (const auto& [key, pose] : truth_traj.poses) {
+    auto si = sensor_index.find(key.second);
+    if (si == sensor_index.end()) continue;
+    const Pose* start = slam_traj.Find(key.first, key.second);
+    if (!start) continue;
+    const double t = key.first * o.seconds_per_unit;
+    int seq = -1;
+    for (size_t k = 0; k < init.trajectories.size(); ++k)
+      if (t >= init.trajectories[k].times_s.front() && t <= init.trajectories[k].times_s.back()) seq = static_cast<int>(k);
+    if (seq < 0) continue;
+    BAProblem::Image im;
+    im.trajectory = seq;
+    im.sensor = si->second;
+    im.time_s = t;
+    im.name = key.second + "/" + std::to_string(key.first);
+    im.T_world_camera = pose.Inverse();
+    truth.images.push_back(im);
+    im.T_world_camera = start->Inverse();
+    init.images.push_back(im);
+  }
+  // Landmarks and observations from the true poses.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> uni(0, 1);
+  std::normal_distribution<double> normal(0, 1);
+  const double cell = o.max_depth;
+  auto cell_of = [&](const Eigen::Vector3d& c) {
+    return std::tuple<int, int, int>(std::floor(c.x() / cell), std::floor(c.y() / cell), std::floor(c.z() / cell));
+  };
+  std::map<std::tuple<int, int, int>, std::vector<int>> grid;
+  for (size_t i = 0; i < truth.images.size(); ++i) grid[cell_of(truth.images[i].T_world_camera.t)].push_back(static_cast<int>(i));
+  const double cos_max = std::cos(o.max_angle_deg * M_PI / 180.0);
+  for (size_t i = 0; i < truth.images.size(); ++i) {
+    const Pose& Twc = truth.images[i].T_world_camera;
+    const locforge::Camera& cam = truth.sensors[truth.images[i].sensor].camera;
+    for (int k = 0; k < o.seeds; ++k) {
+      const Eigen::Vector2d px(uni(rng) * cam.width, uni(rng) * cam.height);
+      const Eigen::Vector3d ray = cam.Unproject(px);
+      const double depth = o.min_depth + uni(rng) * (o.max_depth - o.min_depth);
+      const Eigen::Vector3d X = Twc * (ray / ray.z() * depth);
+      const Eigen::Vector3d seed_dir = (X - Twc.t).normalized();
+      std::vector<std::pair<int, Eigen::Vector2d>> track = {{static_cast<int>(i), Eigen::Vector2d()}};
+      const auto [cx, cy, cz] = cell_of(X);
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dz = -1; dz <= 1; ++dz) {
+            auto it = grid.find({cx + dx, cy + dy, cz + dz});
+            if (it == grid.end()) continue;
+            for (int j : it->second) {
+              if (j == static_cast<int>(i)) continue;
+              const Pose& T = truth.images[j].T_world_camera;
+              if ((X - T.t).norm() > o.max_depth) continue;
+              if ((X - T.t).normalized().dot(seed_dir) < cos_max) continue;
+              const Eigen::Vector3d pc = T.Inverse() * X;
+              if (pc.z() < 0.3) continue;
+              const locforge::Camera& cj = truth.sensors[truth.images[j].sensor].camera;
+              const Eigen::Vector2d p = cj.Project(pc);
+              if (p.x() < 0 || p.y() < 0 || p.x() >= cj.width || p.y() >= cj.height) continue;
+              track.push_back({j, p});
+            }
+          }
+      if (track.size() < 2) continue;
+      if (static_cast<int>(track.size()) > o.max_track) {
+        std::shuffle(track.begin() + 1, track.end(), rng);
+        track.resize(o.max_track);
+      }
+      track[0].second = cam.Project(Twc.Inverse() * X);
+      const int pid = static_cast<int>(truth.points.size());
+      truth.points.push_back({X});
+      init.points.push_back({X + 0.05 * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))});
+      for (const auto& [j, p] : track) {
+        const Eigen::Vector2d noisy = p + o.pixel_noise * Eigen::Vector2d(normal(rng), normal(rng));
+        truth.observations.push_back({j, pid, noisy});
+      }
+    }
+  }
+  init.observations = truth.observations;
+  // The SLAM output's frame is its own, and on the large run some
+  // cross-sequence joins failed (sequences in unrelated frames): align each
+  // sequence's SLAM poses (image poses and platform samples) rigidly to the
+  // truth (Umeyama on the image centres), keeping the SLAM's drift and noise
+  // within the sequence.
+  for (size_t k = 0; k < init.trajectories.size(); ++k) {
+    std::vector<int> ids;
+    for (size_t i = 0; i < init.images.size(); ++i)
+      if (init.images[i].trajectory == static_cast<int>(k)) ids.push_back(static_cast<int>(i));
+    if (ids.size() < 3) continue;
+    Eigen::Matrix3Xd src(3, ids.size()), dst(3, ids.size());
+    for (size_t n = 0; n < ids.size(); ++n) {
+      src.col(n) = init.images[ids[n]].T_world_camera.t;
+      dst.col(n) = truth.images[ids[n]].T_world_camera.t;
+    }
+    const Pose align = Pose::FromMatrix(Eigen::umeyama(src, dst, false));
+    for (int i : ids) init.images[i].T_world_camera = align * init.images[i].T_world_camera;
+    for (Pose& p : init.trajectories[k].T_world_body) p = align * p;
+  }
+  const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  const double rss_problem = PeakRssMb();
+
+  SplineBAOptions options;
+  options.num_threads = o.threads;
+  options.max_iterations = o.iterations;
+  options.linear_solver = o.solver;
+  if (o.trajectory_sigma_m >= 0) options.trajectory_prior_sigma_translation_m = o.trajectory_sigma_m;
+  if (o.trajectory_sigma_deg >= 0) options.trajectory_prior_sigma_rotation_rad = o.trajectory_sigma_deg * M_PI / 180.0;
+  if (!options.Check()) {
+    std::fprintf(stderr, "%s\n", options.CheckMessage().c_str());
+    return 2;
+  }
+  const SceneErrors e0 = CompareToTruth(init, truth);
+  BAProblem problem = init;
+  const double cpu0 = CpuSeconds();
+  const SplineBAResult r = RunSplineBA(options, &problem);
+  const double ba_cpu = CpuSeconds() - cpu0;
+  const SceneErrors e = CompareToTruth(problem, truth);
+  std::printf("trajectories %zu, cameras %zu, images %zu, points %zu, observations %zu (%.1f per image, %.2f per point)\n",
+              problem.trajectories.size(), problem.sensors.size(), problem.images.size(), problem.points.size(),
+              problem.observations.size(), double(problem.observations.size()) / problem.images.size(),
+              double(problem.observations.size()) / problem.points.size());
+  std::printf("| images | points | observations | solver | threads | build s | BA wall s | BA CPU s | iterations | reproj px (initial -> final) | "
+              "image poses SE(3)-aligned RMS cm / deg (start -> final) | peak RSS MB (after build -> after BA) |\n"
+              "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("| %zu | %zu | %zu | %s | %d | %.1f | %.1f | %.1f | %d%s | %.2f -> %.3f | %.2f / %.3f -> %.2f / %.3f | %.0f -> %.0f |\n",
+              problem.images.size(), problem.points.size(), problem.observations.size(), o.solver.c_str(), o.threads,
+              build_s, r.seconds, ba_cpu, r.iterations, r.converged ? "" : " (limit)", r.initial_mean_reproj_px,
+              r.final_mean_reproj_px, 100 * e0.aligned_position_rms_m, e0.aligned_rotation_rms_deg,
+              100 * e.aligned_position_rms_m, e.aligned_rotation_rms_deg, rss_problem, PeakRssMb());
+  std::printf("focal max error %.4f %%, camera rotation max error %.4f deg\nsolver: %s\n", 100 * e.focal_max_rel,
+              e.extrinsic_rotation_max_deg, r.message.c_str());
+  return r.usable ? 0 : 1;
+}
