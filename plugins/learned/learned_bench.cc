@@ -86,38 +86,25 @@ int main(int argc, char** argv) {
     std::function<void(const cv::Mat&)> run;
   };
   std::vector<Extractor> extractors;
+  // R2D2 with one model: the authors' multi-scale extraction, or a single
+  // scale at longer side 648 (the network at 648x512 for both image sizes).
+  auto add_r2d2 = [&](const std::string& model) {
+    const std::string stem = fs::path(model).stem().string();
+    for (const bool single : {false, true})
+      extractors.push_back(
+          {"r2d2 (" + stem + ", real weights, " +
+               (single ? "single scale, longer side 648)" : "multi-scale)"),
+           [=](const cv::Mat& im) {
+             R2d2Options o;
+             o.model = model;
+             if (single) o.min_size = o.max_size = 648;
+             ExtractR2d2(im, o);
+           }});
+  };
   if (fs::exists(r2d2)) {
-    extractors.push_back({"r2d2 (" + fs::path(r2d2).stem().string() + ", real weights, multi-scale)",
-                          [=](const cv::Mat& im) {
-                            R2d2Options o;
-                            o.model = r2d2;
-                            ExtractR2d2(im, o);
-                          }});
-    extractors.push_back({"r2d2 (" + fs::path(r2d2).stem().string() + ", real weights, single scale, longer side 648)",
-                          [=](const cv::Mat& im) {
-                            R2d2Options o;
-                            o.model = r2d2;
-                            o.max_size = 648;
-                            o.min_size = 648;
-                            ExtractR2d2(im, o);
-                          }});
+    add_r2d2(r2d2);
     const std::string fast = (fs::path(r2d2).parent_path() / "faster2d2_WASF_N16.onnx").string();
-    if (fs::exists(fast)) {
-      extractors.push_back({"r2d2 (faster2d2_WASF_N16, real weights, multi-scale)",
-                            [=](const cv::Mat& im) {
-                              R2d2Options o;
-                              o.model = fast;
-                              ExtractR2d2(im, o);
-                            }});
-      extractors.push_back({"r2d2 (faster2d2_WASF_N16, real weights, single scale, longer side 648)",
-                            [=](const cv::Mat& im) {
-                              R2d2Options o;
-                              o.model = fast;
-                              o.max_size = 648;
-                              o.min_size = 648;
-                              ExtractR2d2(im, o);
-                            }});
-    }
+    if (fs::exists(fast)) add_r2d2(fast);
   } else {
     std::cerr << r2d2 << " not found: R2D2 not timed\n";
   }

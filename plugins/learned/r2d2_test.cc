@@ -27,12 +27,18 @@ std::vector<float> ReadFloats(const std::filesystem::path& file) {
   return v;
 }
 
+// 8-bit RGB (empty when unreadable).
+cv::Mat ReadRgb(const std::filesystem::path& file) {
+  const cv::Mat bgr = cv::imread(file.string(), cv::IMREAD_COLOR);
+  cv::Mat rgb;
+  if (!bgr.empty()) cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  return rgb;
+}
+
 TEST(R2d2, ReproducesTheAuthorsExtractionOnBoat) {
   LOCFORGE_SHARED_PATH_OR_SKIP(dir, "models/r2d2");
-  const cv::Mat bgr = cv::imread((dir / "reference" / "boat.png").string(), cv::IMREAD_COLOR);
-  ASSERT_FALSE(bgr.empty());
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  const cv::Mat rgb = ReadRgb(dir / "reference" / "boat.png");
+  ASSERT_FALSE(rgb.empty());
   R2d2Options options;
   options.model = (dir / "r2d2_WASF_N16.onnx").string();
   options.top_k = 5000;
@@ -98,10 +104,8 @@ TEST(R2d2, ReproducesTheAuthorsExtractionOnBoat) {
 // to be refused there.
 TEST(R2d2, Faster2d2RunsOnOddPyramidLevels) {
   LOCFORGE_SHARED_PATH_OR_SKIP(dir, "models/r2d2");
-  const cv::Mat bgr = cv::imread((dir / "reference" / "boat.png").string(), cv::IMREAD_COLOR);
-  ASSERT_FALSE(bgr.empty());
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  const cv::Mat rgb = ReadRgb(dir / "reference" / "boat.png");
+  ASSERT_FALSE(rgb.empty());
   const std::vector<float> ref_kpt = ReadFloats(dir / "reference" / "boat.r2d2_WASF_N16.kpt");
   R2d2Options o;
   o.model = (dir / "faster2d2_WASF_N16.onnx").string();
