@@ -15,20 +15,7 @@
 namespace locforge::sfm_gt {
 namespace {
 
-// Rows of a CSV file as fields (no quoted commas in the files read here).
-std::vector<std::vector<std::string>> ReadCsv(const fs::path& file) {
-  std::vector<std::vector<std::string>> rows;
-  std::istringstream in(ReadFile(file));
-  std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> fields;
-    std::stringstream ss(line);
-    std::string f;
-    while (std::getline(ss, f, ',')) fields.push_back(f);
-    rows.push_back(fields);
-  }
-  return rows;
-}
+using testing::ReadCsv;
 
 std::map<std::string, double> Row(const std::vector<std::vector<std::string>>& csv, const std::string& first) {
   std::map<std::string, double> out;
@@ -44,19 +31,9 @@ TEST(SfmGtPipeline, TinyRecordingRefinedFromPerturbedCalibration) {
   const fs::path bin = LOCFORGE_BINARY_DIR;
   const fs::path src = LOCFORGE_SOURCE_DIR;
   const fs::path dir = testing::MakeTempDir("sfm_gt_pipeline");
-  const std::string env = "LOCFORGE_PLUGIN_PATH='" + (bin / "lib/locforge/plugins").string() + "' ";
-  const std::string host = (bin / "bin/locforge").string();
-  WriteFileAtomic(dir / "sim.yaml", R"(locforge: 1
-nodes:
-  recording:
-    stage: source/simulator
-    params: {preset: tiny, seed: 0, masks: false, scale: 0.125}
-)");
-  ASSERT_EQ(std::system((env + host + " run '" + (dir / "sim.yaml").string() + "' --workspace '" +
-                         (dir / "ws").string() + "' > '" + (dir / "sim.log").string() + "' 2>&1").c_str()),
-            0)
-      << ReadFile(dir / "sim.log");
-  const fs::path dataset = fs::canonical(dir / "ws/nodes/recording");
+  const fs::path dataset =
+      testing::SimulateRecording(bin, dir, "{preset: tiny, seed: 0, masks: false, scale: 0.125}");
+  ASSERT_FALSE(dataset.empty()) << ReadFile(dir / "sim.log");
   // configs/gt/full.yaml + the evaluation against the simulator's truth.
   std::string graph = ReadFile(src / "configs/gt/full.yaml");
   graph += R"(  eval:
@@ -65,10 +42,12 @@ nodes:
     params: {reference: "${dataset}"}
 )";
   WriteFileAtomic(dir / "full.yaml", graph);
-  ASSERT_EQ(std::system((env + host + " run '" + (dir / "full.yaml").string() + "' --workspace '" +
-                         (dir / "ws").string() + "' --set dataset='" + dataset.string() +
-                         "' --set focal_percent=3 --set rotation_deg=1.5 --set max_keypoints=1000 --set pair_topk=8 --set gt.rounds=3 --set gt.filter_max_reproj_error=[8,4,2] > '" +
-                         (dir / "full.log").string() + "' 2>&1").c_str()),
+  ASSERT_EQ(testing::RunHost(bin, {"run", (dir / "full.yaml").string(), "--workspace", (dir / "ws").string(),
+                                   "--set", "dataset=" + dataset.string(), "--set", "focal_percent=3",
+                                   "--set", "rotation_deg=1.5", "--set", "max_keypoints=1000", "--set",
+                                   "pair_topk=8", "--set", "gt.rounds=3", "--set",
+                                   "gt.filter_max_reproj_error=[8,4,2]"},
+                              dir / "full.log"),
             0)
       << ReadFile(dir / "full.log");
   const fs::path gt = dir / "ws/nodes/gt";

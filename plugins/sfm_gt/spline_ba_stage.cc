@@ -269,6 +269,7 @@ colmap::Reconstruction OuterLoop::Triangulate(double threshold, const std::strin
   colmap::RunOptions ro;
   ro.log_file = work / "colmap_point_triangulator.log";
   ro.timeout_s = o_.timeout_s;
+  ro.cancelled = [this] { return ctx_.cancelled(); };  // Ctrl-C stops colmap too
   colmap::RunColmap(args, ro);
   return colmap::ReadModel(work / "model");
 }
