@@ -29,28 +29,54 @@ std::string FileStamp(const fs::path& p) {
 
 }  // namespace
 
+namespace {
+
+// Bounds of a folder stamp: enough for a floor's 40k images and hours of
+// LiDAR (one file per scan), small enough that stamping stays a stat walk.
+constexpr size_t kMaxStampEntries = 2000000;
+constexpr int kMaxStampDepth = 16;  // also ends symlink cycles
+
+// Feeds "relative/path size@mtime" (or "relative/path/ dir") of every entry
+// under `dir` into `hash`, children sorted by name at every level so the
+// stamp never depends on readdir order (and the entry cap cuts the same
+// entries each time). Follows symlinks, as the stages reading the folder do.
+void StampTree(const fs::path& dir, const std::string& rel, int depth, Sha256* hash,
+               size_t* count) {
+  std::error_code ec;
+  std::vector<fs::path> children;
+  for (auto it = fs::directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
+       !ec && it != fs::directory_iterator(); it.increment(ec))
+    children.push_back(it->path());
+  std::sort(children.begin(), children.end());
+  for (const fs::path& child : children) {
+    if (*count >= kMaxStampEntries) return;
+    ++*count;
+    const std::string name = rel + child.filename().string();
+    if (fs::is_directory(child, ec)) {
+      hash->Update(name + "/ dir\n");
+      if (depth < kMaxStampDepth) StampTree(child, name + "/", depth + 1, hash, count);
+    } else {
+      hash->Update(name + " " + FileStamp(child) + "\n");
+    }
+  }
+}
+
+}  // namespace
+
 std::string PathStamp(const fs::path& path) {
   std::error_code ec;
   const fs::path abs = fs::absolute(path, ec).lexically_normal();
   std::string out = abs.string();
   if (fs::is_regular_file(abs, ec)) return out + " file " + FileStamp(abs);
   if (!fs::is_directory(abs, ec)) return out + " missing";
-  // Entries up to depth 2, sorted so the stamp does not depend on readdir order.
-  std::vector<std::string> entries;
-  constexpr size_t kMaxEntries = 10000;
-  auto it =
-      fs::recursive_directory_iterator(abs, fs::directory_options::skip_permission_denied, ec);
-  for (; !ec && it != fs::recursive_directory_iterator() && entries.size() < kMaxEntries;
-       it.increment(ec)) {
-    if (it.depth() >= 1) it.disable_recursion_pending();
-    const fs::path rel = it->path().lexically_relative(abs);
-    entries.push_back(rel.string() + " " +
-                      (it->is_directory(ec) ? std::string("dir") : FileStamp(it->path())));
-  }
-  std::sort(entries.begin(), entries.end());
-  out += " dir";
-  for (const auto& e : entries) out += "\n  " + e;
-  return out;
+  // Every entry at any depth (bounded), by size and mtime: a change deep in a
+  // dataset (e.g. validation/sensors/trajectories.txt) invalidates the nodes reading it.
+  Sha256 hash;
+  size_t count = 0;
+  StampTree(abs, "", 1, &hash, &count);
+  out += " dir " + std::to_string(count) + " entries";
+  if (count >= kMaxStampEntries) out += " (stamp capped)";
+  return out + " sha256:" + hash.HexDigest();
 }
 
 std::string CacheKeyText(const ResolvedNode& node,

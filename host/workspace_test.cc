@@ -84,8 +84,19 @@ TEST_F(CacheKeyTest, PathParamsEnterByContentStamp) {
   EXPECT_NE(k1, k2);
   std::ofstream(dir / "data" / "a.txt") << "longer content";  // size changes
   EXPECT_NE(k2, CacheKey(n, {}));
-  EXPECT_NE(PathStamp(dir / "data").find("sub/b.txt 3@"), std::string::npos)
+  // A change deep inside the folder (as in a kapture's validation/sensors/) counts too.
+  fs::create_directories(dir / "data" / "validation" / "sensors" / "deeper");
+  const std::string deep = (dir / "data" / "validation" / "sensors" / "deeper" / "t.txt").string();
+  std::ofstream(deep) << "0, cam, 1, 0, 0, 0, 0, 0, 0";
+  const std::string k3 = CacheKey(n, {});
+  EXPECT_EQ(k3, CacheKey(n, {}));  // stable while nothing changes
+  std::ofstream(deep) << "0, cam, 1, 0, 0, 0, 0, 0, 0.5";
+  EXPECT_NE(k3, CacheKey(n, {}));
+  EXPECT_NE(PathStamp(dir / "data").find(" dir 7 entries sha256:"), std::string::npos)
       << PathStamp(dir / "data");
+  // A symlink cycle ends at the depth bound instead of looping.
+  fs::create_directory_symlink(dir / "data", dir / "data" / "sub" / "loop");
+  EXPECT_NE(PathStamp(dir / "data").find(" sha256:"), std::string::npos);
   EXPECT_NE(PathStamp(dir / "nothing").find(" missing"), std::string::npos);
   fs::remove_all(dir);
 }
