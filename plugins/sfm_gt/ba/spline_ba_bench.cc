@@ -14,22 +14,14 @@
 #include <cstring>
 #include <string>
 
+#include "resource_usage.h"
 #include "spline_ba.h"
 #include "synthetic.h"
 
 namespace {
 
-double PeakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;  // Linux: kilobytes
-}
-
-double CpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec + 1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
-}
+using locforge::sfm::CpuSeconds;
+using locforge::sfm::PeakRssMb;
 
 }  // namespace
 

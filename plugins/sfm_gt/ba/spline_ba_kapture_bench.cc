@@ -39,6 +39,7 @@
 #include <unordered_map>
 
 #include "locforge/kapture/io.h"
+#include "resource_usage.h"
 #include "spline_ba.h"
 #include "synthetic.h"
 
@@ -48,17 +49,8 @@ namespace kp = locforge::kapture;
 using locforge::Pose;
 using namespace locforge::sfm;
 
-double PeakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;  // Linux: kilobytes
-}
-
-double CpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec + 1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
-}
+using locforge::sfm::CpuSeconds;
+using locforge::sfm::PeakRssMb;
 
 struct Options {
   std::string recording, slam, solver = "auto";
