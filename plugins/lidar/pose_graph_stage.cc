@@ -20,6 +20,24 @@
 
 namespace locforge::lidar {
 
+namespace {
+
+// A turn by `yaw` (rad) about the platform's up axis, then the translation `t`.
+Pose YawPose(double yaw, const Eigen::Vector3d& t = Eigen::Vector3d::Zero()) {
+  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())), t);
+}
+
+// One initial_poses entry, "sequence x y yaw_deg": false when malformed.
+bool ParseInitialPose(const std::string& entry, std::string* sequence, Pose* start) {
+  std::istringstream s(entry);
+  double x, y, yaw;
+  if (!(s >> *sequence >> x >> y >> yaw)) return false;
+  *start = YawPose(yaw * M_PI / 180, Eigen::Vector3d(x, y, 0));
+  return true;
+}
+
+}  // namespace
+
 void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
   using O = PoseGraphSlamOptions;
   s.Add("dataset", &O::dataset,
@@ -97,10 +115,9 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
 
 bool PoseGraphSlamOptions::Check(std::string* why) const {
   for (const auto& p : initial_poses) {
-    std::istringstream s(p);
     std::string seq;
-    double x, y, yaw;
-    if (!(s >> seq >> x >> y >> yaw)) {
+    Pose start;
+    if (!ParseInitialPose(p, &seq, &start)) {
       if (why) *why = "initial_poses: '" + p + "' is not 'sequence x y yaw_deg'";
       return false;
     }
@@ -176,7 +193,7 @@ class Slam {
   // Same sequence and motion segment (odometry segment, or no gap above max_scan_gap).
   bool SameSegment(const Keyframe& a, Timestamp t, const std::string& sequence) const;
   Pose MotionGuess(size_t i) const;
-  Matrix6d EdgeInformation(const RegistrationResult& r, const Pose& T_ab) const;
+  Matrix6d EdgeInformation(const RegistrationResult& r, const Pose& T_ab);  // counts fallbacks
   Pose PoseAt(Timestamp t, bool* found) const;
   void WriteOutputs(const std::vector<kapture::DataRecord>& scans, const PoseGraph& before,
                     const PoseGraphSummary& summary, double seconds);
@@ -204,12 +221,11 @@ void Slam::SelectKeyframes(const std::vector<kapture::DataRecord>& scans, const 
   const double max_angle = o_.keyframe_angle * M_PI / 180;
   std::map<std::string, Pose> corrections;
   for (const auto& p : o_.initial_poses) {
-    std::istringstream s(p);
     std::string seq;
-    double x, y, yaw;
-    s >> seq >> x >> y >> yaw;
-    corrections[seq] = Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw * M_PI / 180, Eigen::Vector3d::UnitZ())),
-                            Eigen::Vector3d(x, y, 0));
+    Pose start;
+    if (!ParseInitialPose(p, &seq, &start))  // also refused by PoseGraphSlamOptions::Check
+      throw ParamError("initial_poses: '" + p + "' is not 'sequence x y yaw_deg'");
+    corrections[seq] = start;
   }
   kapture::Kapture k(scans_root);
   const Keyframe* last = nullptr;
@@ -279,14 +295,14 @@ Pose Slam::MotionGuess(size_t i) const {
 // Information of a registration edge (header of PoseGraphSlamOptions): the
 // back-end's Hessian in the edge's coordinates, rescaled; fixed sigmas when
 // asked for or when the Hessian is unusable.
-Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) const {
+Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) {
   const double sigma_r = o_.sigma_rotation * M_PI / 180;
   const Matrix6d fixed = DiagonalInformation(o_.sigma_translation, sigma_r);
   if (o_.edge_information == "fixed") return fixed;
   Matrix6d out;
   if (!NormalizeInformation(RegistrationInformationToEdge(r.information, T_ab), o_.sigma_translation, sigma_r,
                             o_.information_max_ratio, &out)) {
-    ++const_cast<Slam*>(this)->information_fallbacks_;
+    ++information_fallbacks_;
     return fixed;
   }
   return out;
@@ -326,9 +342,7 @@ void Slam::AddSequentialEdges() {
       // joining sequences (loop_yaw_hypotheses of them).
       std::vector<Pose> turned;
       for (int h = 1; h < o_.loop_yaw_hypotheses; ++h)
-        turned.push_back(guesses[0] * Pose(Eigen::Quaterniond(Eigen::AngleAxisd(
-                                               2 * M_PI * h / o_.loop_yaw_hypotheses, Eigen::Vector3d::UnitZ())),
-                                           Eigen::Vector3d::Zero()));
+        turned.push_back(guesses[0] * YawPose(2 * M_PI * h / o_.loop_yaw_hypotheses));
       try_guesses(turned);
     }
     guess = ok ? guess : guesses[0];
@@ -520,9 +534,7 @@ bool Slam::TryJoin(int A, int B) {
     const Keyframe& b = *near_start[i];
     std::map<int, std::vector<Pose>> guesses;  // a -> guesses
     for (int h = 0; h < o_.loop_yaw_hypotheses; ++h) {
-      const Pose turn(Eigen::Quaterniond(Eigen::AngleAxisd(2 * M_PI * h / o_.loop_yaw_hypotheses,
-                                                           Eigen::Vector3d::UnitZ())),
-                      Eigen::Vector3d::Zero());
+      const Pose turn = YawPose(2 * M_PI * h / o_.loop_yaw_hypotheses);
       const Pose H = Pose(Eigen::Quaterniond::Identity(), p0) * turn * Pose(Eigen::Quaterniond::Identity(), -p0);
       const Keyframe* a = nearest_a(H * graph_.nodes.at(b.id).t);
       if (a) guesses[a->id].push_back(graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b.id));
