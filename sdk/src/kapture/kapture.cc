@@ -365,18 +365,6 @@ void WriteImageFeatures(const fs::path& root, const std::string& type, const Fea
   WriteFeatureFile(FeatureFilePath(root, info.kind, type, image), array);
 }
 
-void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
-                             const FeatureInfo& keypoints_info, const FeatureArray& keypoints,
-                             const FeatureInfo& descriptors_info, const FeatureArray& descriptors) {
-  if (keypoints_info.kind != FeatureKind::kKeypoints || descriptors_info.kind != FeatureKind::kDescriptors)
-    throw Error("WriteImageLocalFeatures: expected a keypoints info and a descriptors info");
-  if (keypoints.rows != descriptors.rows)
-    throw Error("features for " + image + ": " + std::to_string(keypoints.rows) + " keypoints but " +
-                std::to_string(descriptors.rows) + " descriptors");
-  WriteImageFeatures(root, type, keypoints_info, image, keypoints);
-  WriteImageFeatures(root, type, descriptors_info, image, descriptors);
-}
-
 LocalFeatureInfos MakeLocalFeatureInfos(const std::string& type, const std::string& name,
                                         int64_t keypoint_dims, DType descriptor_dtype,
                                         int64_t descriptor_dims, const std::string& metric,
@@ -402,8 +390,13 @@ LocalFeatureInfos MakeLocalFeatureInfos(const std::string& type, const std::stri
 void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
                              const LocalFeatureInfos& infos, const FeatureArray& keypoints,
                              const FeatureArray& descriptors) {
-  WriteImageLocalFeatures(root, type, image, infos.keypoints, keypoints, infos.descriptors,
-                          descriptors);
+  if (infos.keypoints.kind != FeatureKind::kKeypoints || infos.descriptors.kind != FeatureKind::kDescriptors)
+    throw Error("WriteImageLocalFeatures: expected a keypoints info and a descriptors info");
+  if (keypoints.rows != descriptors.rows)
+    throw Error("features for " + image + ": " + std::to_string(keypoints.rows) + " keypoints but " +
+                std::to_string(descriptors.rows) + " descriptors");
+  WriteImageFeatures(root, type, infos.keypoints, image, keypoints);
+  WriteImageFeatures(root, type, infos.descriptors, image, descriptors);
 }
 
 void WriteLocalFeatureSetInfos(const fs::path& root, const std::string& type,

@@ -169,12 +169,6 @@ void WriteFeatureSetInfo(const fs::path& root, const std::string& type, const Fe
 // and dsize against `info`.
 void WriteImageFeatures(const fs::path& root, const std::string& type, const FeatureInfo& info,
                         const std::string& image, const FeatureArray& array);
-// Writes one image's local features: keypoints then descriptors, each file
-// atomically, after checking both arrays against their infos and that they
-// have the same number of rows (the per-image output of feature extractors).
-void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
-                             const FeatureInfo& keypoints_info, const FeatureArray& keypoints,
-                             const FeatureInfo& descriptors_info, const FeatureArray& descriptors);
 // The keypoints.txt and descriptors.txt infos of one local feature type as a
 // feature extractor writes them (features/sift, features/r2d2, features/d2net):
 // keypoints float32 x keypoint_dims named `name`; descriptors of
@@ -188,7 +182,9 @@ LocalFeatureInfos MakeLocalFeatureInfos(const std::string& type, const std::stri
                                         int64_t keypoint_dims, DType descriptor_dtype,
                                         int64_t descriptor_dims, const std::string& metric = "L2",
                                         const std::string& descriptors_name = "");
-// WriteImageLocalFeatures with the infos of MakeLocalFeatureInfos.
+// Writes one image's local features: keypoints then descriptors, each file
+// atomically, after checking both arrays against their infos and that they
+// have the same number of rows (the per-image output of feature extractors).
 void WriteImageLocalFeatures(const fs::path& root, const std::string& type, const std::string& image,
                              const LocalFeatureInfos& infos, const FeatureArray& keypoints,
                              const FeatureArray& descriptors);
