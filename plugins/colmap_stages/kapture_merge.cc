@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <regex>
 #include <tuple>
 #include <set>
 #include <system_error>
@@ -24,8 +25,16 @@ bool SamePose(const Pose& a, const Pose& b) {
 }  // namespace
 
 MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const fs::path& dst,
-                                bool copy_records_data) {
+                                bool copy_records_data, const std::string& image_regex) {
   if (sources.empty()) throw InputError("kapture merge: no source folder");
+  std::regex keep;
+  try {
+    keep = std::regex(image_regex);
+  } catch (const std::regex_error& e) {
+    throw ParamError("images: '" + image_regex + "' is not a regular expression: " + e.what());
+  }
+  const bool filtered = !image_regex.empty();
+  std::set<std::pair<Timestamp, std::string>> kept_images;
   kp::Sensors sensors;
   kp::Rigs rigs;
   std::set<std::pair<std::string, std::string>> rig_entries;
@@ -74,6 +83,8 @@ MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const f
                                 ? k.ExistingRecordDataPath(r.path, (source.root / records_file).string())
                                 : fs::path();
       if (!source.prefix.empty()) r.path = source.prefix + "/" + r.path;
+      if (filtered && !std::regex_match(r.path, keep)) continue;
+      kept_images.insert({r.timestamp, r.device_id});
       if (!image_paths.insert(r.path).second)
         throw InputError((source.root / records_file).string(), 0, "image_path",
                          "'" + r.path + "' already comes from an earlier source");
@@ -86,6 +97,12 @@ MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const f
   }
   kp::WriteSensors(dst / kp::layout::kSensors, sensors);
   if (!rigs.empty()) kp::WriteRigs(dst / kp::layout::kRigs, rigs);
+  if (filtered) {
+    kp::Trajectories kept;
+    for (const auto& [key, pose] : trajectories.poses)
+      if (kept_images.count(key)) kept.Set(key.first, key.second, pose, trajectories.PartsOf(key));
+    trajectories = std::move(kept);
+  }
   if (!trajectories.empty()) kp::WriteTrajectories(dst / kp::layout::kTrajectories, trajectories);
   std::stable_sort(records.begin(), records.end(), [](const auto& a, const auto& b) {
     return std::tie(a.timestamp, a.device_id) < std::tie(b.timestamp, b.device_id);

@@ -31,8 +31,11 @@ struct MergeReport {
 // and reconstructions are not carried. A sensor id (or rig entry, or
 // trajectory key) present in several sources must be identical in all, else
 // InputError naming the source file; so must image paths after prefixing.
+// With a non-empty `image_regex`, only the images whose (prefixed) path
+// matches it whole are kept, and trajectories.txt only holds their poses
+// (e.g. the mapping or the query sequences of one ground-truth kapture).
 MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const fs::path& dst,
-                                bool copy_records_data);
+                                bool copy_records_data, const std::string& image_regex = "");
 
 }  // namespace locforge::colmap_stages
 

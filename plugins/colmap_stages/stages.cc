@@ -2,6 +2,7 @@
 // `point_triangulator` / `image_registrator` on a database we fill from
 // kapture artifacts, with the paper's parameters.
 #include <chrono>
+#include <regex>
 #include <sstream>
 
 #include "colmap_db.h"
@@ -206,6 +207,7 @@ struct KaptureFolderOptions {
   std::string path;                // The kapture root to bring into the graph.
   bool copy_records_data = true;   // Copy images etc. (needed by stages reading pixels).
   std::vector<std::string> subfolders;  // Kapture roots under `path` merged into one (cameras only).
+  std::string images;              // Regex: keep only the images whose path matches (cameras only).
   static void Declare(ParamSchema<KaptureFolderOptions>& s) {
     s.Add("path", &KaptureFolderOptions::path, "kapture root (sensors/, reconstruction/)").Path().Required();
     s.Add("copy_records_data", &KaptureFolderOptions::copy_records_data,
@@ -215,11 +217,20 @@ struct KaptureFolderOptions {
           "with the sub-folder (e.g. [validation, test] of a simulator recording; \".\" is "
           "`path` itself, unprefixed); sensors, rigs, trajectories and camera records only. "
           "Empty: `path` copied whole");
+    s.Add("images", &KaptureFolderOptions::images,
+          "regular expression on image paths (after the sub-folder prefix): keep only the images "
+          "it matches whole, with their poses; cameras only (e.g. \"map_.*\" and \"(val|test)_.*\" "
+          "split one ground-truth kapture into map and queries). Empty: all");
   }
   bool Check(std::string* why) const {
     for (const auto& sub : subfolders)
       if (sub.empty() || fs::path(sub).is_absolute() || sub.find("..") != std::string::npos)
         return *why = "subfolders: '" + sub + "' is not a relative folder under path", false;
+    try {
+      std::regex(images);
+    } catch (const std::regex_error& e) {
+      return *why = "images: '" + images + "' is not a regular expression: " + e.what(), false;
+    }
     return true;
   }
 };
@@ -235,13 +246,14 @@ class KaptureFolder : public Stage<KaptureFolderOptions> {
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override {
-    if (!options().subfolders.empty()) {
+    if (!options().subfolders.empty() || !options().images.empty()) {
       std::vector<MergeSource> sources;
+      if (options().subfolders.empty()) sources.push_back({fs::path(options().path), ""});
       for (const auto& sub : options().subfolders)
         sources.push_back({sub == "." ? fs::path(options().path) : fs::path(options().path) / sub,
                            sub == "." ? "" : fs::path(sub).generic_string()});
       const MergeReport r =
-          MergeCameraKaptures(sources, ctx.output_dir(), options().copy_records_data);
+          MergeCameraKaptures(sources, ctx.output_dir(), options().copy_records_data, options().images);
       std::string subs;
       for (const auto& sub : options().subfolders) subs += (subs.empty() ? "" : ", ") + sub;
       ctx.Info("kapture " + options().path + " [" + subs + "] merged: " +
