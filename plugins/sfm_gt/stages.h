@@ -81,6 +81,11 @@ struct SplineBAStageOptions {
   bool estimate_time_offsets = false;   // One clock offset per camera (not in the paper; README).
   double max_time_offset_s = 0.05;      // Bound of each estimated clock offset (s, < knot_spacing_s).
   int max_iterations = 50;              // Solver iterations per round.
+  // Linear solver of the BA: auto = sparse_schur up to sparse_schur_max_images
+  // images, else iterative_schur (plugins/sfm_gt/ba/spline_ba.h).
+  std::string linear_solver = "auto";
+  int sparse_schur_max_images = 2000;
+  double iterative_eta = 0.001;         // Relative residual of the conjugate gradients (iterative_schur).
   double pose_tolerance_m = 0.0005;     // Converged when the RMS camera-centre change of a round is below...
   double rotation_tolerance_deg = 0.005;  // ...and the RMS camera rotation change is below...
   double reproj_tolerance_px = 0.02;    // ...and the mean reprojection error changed less than this.
@@ -111,6 +116,11 @@ struct SplineBAStageOptions {
           "estimate one clock offset per camera (image i tied to the spline at t_i + offset); time_offsets.csv");
     s.Add("max_time_offset_s", &O::max_time_offset_s, "bound of each estimated clock offset (s; < knot_spacing_s)").Min(1e-6);
     s.Add("max_iterations", &O::max_iterations, "solver iterations per round").Range(1, 10000);
+    s.Add("linear_solver", &O::linear_solver,
+          "BA linear solver: auto (sparse_schur up to sparse_schur_max_images images), sparse_schur, iterative_schur")
+        .Choices({"auto", "sparse_schur", "iterative_schur"});
+    s.Add("sparse_schur_max_images", &O::sparse_schur_max_images, "auto: the most images solved with sparse_schur").Min(0);
+    s.Add("iterative_eta", &O::iterative_eta, "iterative_schur: relative residual of the conjugate gradients").Range(1e-9, 0.999);
     s.Add("pose_tolerance_m", &O::pose_tolerance_m, "convergence: RMS camera-centre change of a round (m)").Min(0);
     s.Add("rotation_tolerance_deg", &O::rotation_tolerance_deg, "convergence: RMS camera rotation change of a round (deg)").Min(0);
     s.Add("reproj_tolerance_px", &O::reproj_tolerance_px, "convergence: change of the mean reprojection error (px)").Min(0);

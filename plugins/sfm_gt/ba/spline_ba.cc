@@ -28,6 +28,8 @@ std::string SplineBAOptions::CheckMessage() const {
   if (!(function_tolerance >= 0) || !(gradient_tolerance >= 0) || !(parameter_tolerance >= 0))
     return "tolerances must be >= 0";
   if (num_threads < 1) return "num_threads must be >= 1";
+  if (sparse_schur_max_images < 0) return "sparse_schur_max_images must be >= 0";
+  if (!(iterative_eta > 0 && iterative_eta < 1)) return "iterative_eta must be in (0, 1)";
   if (!positive(max_time_offset_s) || max_time_offset_s >= knot_spacing_s)
     return "max_time_offset_s must be in (0, knot_spacing_s)";
   if (linear_solver != "auto" && linear_solver != "sparse_schur" && linear_solver != "iterative_schur")
@@ -359,11 +361,13 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
 
   ceres::Solver::Options solver;
   const bool iterative = options.linear_solver == "iterative_schur" ||
-                         (options.linear_solver == "auto" && problem->images.size() > 500);
+                         (options.linear_solver == "auto" &&
+                          static_cast<int>(problem->images.size()) > options.sparse_schur_max_images);
   solver.linear_solver_type = ordering ? (iterative ? ceres::ITERATIVE_SCHUR : ceres::SPARSE_SCHUR)
                                        : ceres::SPARSE_NORMAL_CHOLESKY;
   solver.preconditioner_type = ceres::SCHUR_JACOBI;
   solver.linear_solver_ordering = ordering;
+  solver.eta = options.iterative_eta;
   solver.max_num_iterations = options.max_iterations;
   solver.function_tolerance = options.function_tolerance;
   solver.gradient_tolerance = options.gradient_tolerance;
