@@ -7,6 +7,7 @@
 #include <fstream>
 #include <map>
 #include <random>
+#include <tuple>
 
 #include "densevlad.h"
 #include "locforge/kapture/kapture.h"
@@ -144,6 +145,56 @@ TEST(PairsGeometry, ExhaustiveAndPoseProximityOnTheSample) {
   std::cout << prox.size() << " query-map pairs within 1.5 m and 70 deg\n";
   EXPECT_EQ(prox.size(), expected);
   EXPECT_GT(expected, 0u);
+  fs::remove_all(tmp);
+}
+
+// Two passes along the same corridor 100 s apart, 4 cameras per moment: the
+// closest images of every image are those of its own moment, so top-k alone
+// never pairs the passes; topk_revisit must, whatever the names' order.
+TEST(PairsGeometry, PoseProximityRevisitsAcrossSequences) {
+  const fs::path tmp = locforge::testing::MakeTempDir("pairs_revisit");
+  std::string records = "# kapture format: 1.1\n", poses = "# kapture format: 1.1\n";
+  std::string sensors = "# kapture format: 1.1\n";
+  for (int c = 0; c < 4; ++c) sensors += "cam" + std::to_string(c) + ", c, camera, PINHOLE, 64, 48, 50, 50, 32, 24\n";
+  const std::vector<std::tuple<std::string, int64_t, double>> passes = {{"z_first", 0, 0.0},
+                                                                         {"a_second", 100000000, 0.3}};
+  for (const auto& [seq, t0, y] : passes)
+    for (int k = 0; k < 10; ++k)
+      for (int c = 0; c < 4; ++c) {
+        const int64_t t = t0 + k * 1000000 + c;
+        records += std::to_string(t) + ", cam" + std::to_string(c) + ", " + seq + "/" + std::to_string(t) + ".jpg\n";
+        // Camera at (k, y + 0.01 c, 0) looking along +x (kapture stores camera-from-world).
+        const Pose T_world_cam(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())),
+                               Eigen::Vector3d(k, y + 0.01 * c, 0));
+        const Pose T_cam_world = T_world_cam.Inverse();
+        char line[256];
+        std::snprintf(line, sizeof(line), "%lld, cam%d, %.12f, %.12f, %.12f, %.12f, %.12f, %.12f, %.12f\n",
+                      static_cast<long long>(t), c, T_cam_world.q.w(), T_cam_world.q.x(), T_cam_world.q.y(),
+                      T_cam_world.q.z(), T_cam_world.t.x(), T_cam_world.t.y(), T_cam_world.t.z());
+        poses += line;
+      }
+  WriteFileAtomic(tmp / "map/sensors/sensors.txt", sensors);
+  WriteFileAtomic(tmp / "map/sensors/records_camera.txt", records);
+  WriteFileAtomic(tmp / "map/sensors/trajectories.txt", poses);
+  runtime::Registry registry;
+  ASSERT_TRUE(registry.LoadFile(LOCFORGE_RETRIEVAL_PLUGIN_FILE));
+  const runtime::InputArtifact map{"map", "kapture.dataset", tmp / "map"};
+  auto cross = [](const std::vector<Pair>& pairs) {
+    int n = 0;
+    for (const auto& p : pairs) n += p.query.substr(0, 2) != p.map.substr(0, 2);
+    return n;
+  };
+  RunStage(registry, "pairs/pose_proximity", {{"max_distance", "2"}, {"topk", "3"}}, {map}, tmp / "top3");
+  const auto top3 = ReadPairs(tmp / "top3");
+  EXPECT_EQ(cross(top3), 0);  // the 3 closest: the other cameras of the same moment
+  // Every image has the same number of neighbours kept, whatever its name: 80 images x 3, each pair once.
+  EXPECT_EQ(top3.size(), 120u);
+  RunStage(registry, "pairs/pose_proximity", {{"max_distance", "2"}, {"topk", "3"}, {"topk_revisit", "2"}}, {map},
+           tmp / "revisit");
+  const auto revisit = ReadPairs(tmp / "revisit");
+  // 2 revisits per image, 80 images, each cross pair found from both sides at most once.
+  EXPECT_GE(cross(revisit), 80);
+  EXPECT_EQ(revisit.size() - cross(revisit), top3.size());
   fs::remove_all(tmp);
 }
 
