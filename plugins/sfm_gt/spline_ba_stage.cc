@@ -312,6 +312,7 @@ void OuterLoop::Run() {
     ba.max_iterations = o_.max_iterations;
     ba.estimate_time_offsets = o_.estimate_time_offsets;
     ba.max_time_offset_s = o_.max_time_offset_s;
+    ba.zero_mean_time_offsets = o_.zero_mean_time_offsets;
     ba.linear_solver = o_.linear_solver;
     ba.sparse_schur_max_images = o_.sparse_schur_max_images;
     ba.iterative_eta = o_.iterative_eta;

@@ -80,6 +80,7 @@ struct SplineBAStageOptions {
   double cauchy_scale_px = 2.0;         // Cauchy loss scale of reprojection residuals.
   bool estimate_time_offsets = false;   // One clock offset per camera (not in the paper; README).
   double max_time_offset_s = 0.05;      // Bound of each estimated clock offset (s, < knot_spacing_s).
+  bool zero_mean_time_offsets = true;   // Hold the mean clock offset at 0 (the LiDAR clock; ba/spline_ba.h).
   int max_iterations = 50;              // Solver iterations per round.
   // Linear solver of the BA: auto = sparse_schur up to sparse_schur_max_images
   // images, else iterative_schur (plugins/sfm_gt/ba/spline_ba.h).
@@ -115,6 +116,8 @@ struct SplineBAStageOptions {
     s.Add("estimate_time_offsets", &O::estimate_time_offsets,
           "estimate one clock offset per camera (image i tied to the spline at t_i + offset); time_offsets.csv");
     s.Add("max_time_offset_s", &O::max_time_offset_s, "bound of each estimated clock offset (s; < knot_spacing_s)").Min(1e-6);
+    s.Add("zero_mean_time_offsets", &O::zero_mean_time_offsets,
+          "with estimate_time_offsets: hold the mean offset at 0 (a common offset looks like a common camera yaw)");
     s.Add("max_iterations", &O::max_iterations, "solver iterations per round").Range(1, 10000);
     s.Add("linear_solver", &O::linear_solver,
           "BA linear solver: auto (sparse_schur up to sparse_schur_max_images images), sparse_schur, iterative_schur")

@@ -161,6 +161,30 @@ struct ControlSmoothnessError {
   Eigen::Matrix<double, 6, 1> sqrt_info;
 };
 
+// Gauge of the clock offsets: e = weight * sum_s d_s over the estimated
+// offsets (one 1-parameter block each). Linear, so its Jacobian is the
+// constant weight.
+class TimeOffsetSumError : public ceres::CostFunction {
+ public:
+  TimeOffsetSumError(int num_offsets, double weight) : weight_(weight) {
+    set_num_residuals(1);
+    for (int i = 0; i < num_offsets; ++i) mutable_parameter_block_sizes()->push_back(1);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    const int n = static_cast<int>(parameter_block_sizes().size());
+    double sum = 0;
+    for (int i = 0; i < n; ++i) sum += parameters[i][0];
+    residuals[0] = weight_ * sum;
+    if (jacobians)
+      for (int i = 0; i < n; ++i)
+        if (jacobians[i]) jacobians[i][0] = weight_;
+    return true;
+  }
+
+ private:
+  double weight_;
+};
+
 inline Eigen::Matrix<double, 6, 1> SqrtInformation(double sigma_rotation_rad, double sigma_translation_m) {
   Eigen::Matrix<double, 6, 1> s;
   s << Eigen::Vector3d::Constant(1.0 / sigma_rotation_rad), Eigen::Vector3d::Constant(1.0 / sigma_translation_m);

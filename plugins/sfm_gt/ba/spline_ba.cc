@@ -340,6 +340,14 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
       }
     }
   }
+  if (options.estimate_time_offsets && options.zero_mean_time_offsets) {
+    std::vector<double*> offsets;
+    for (size_t s = 0; s < problem->sensors.size(); ++s)
+      if (sensor_in_prior[s]) offsets.push_back(&x.time_offsets[s]);
+    // 1e-5 s per unit of the sum: stiff against the offsets' own information.
+    if (offsets.size() >= 2)
+      ceres_problem.AddResidualBlock(new TimeOffsetSumError(static_cast<int>(offsets.size()), 1e5), nullptr, offsets);
+  }
   if (!options.refine_points)
     for (auto& p : x.points)
       if (ceres_problem.HasParameterBlock(p.data())) ceres_problem.SetParameterBlockConstant(p.data());

@@ -101,6 +101,14 @@ struct SplineBAOptions {
   // constant per-camera offsets then bias the extrinsic rotations (README).
   bool estimate_time_offsets = false;
   double max_time_offset_s = 0.05;
+  // With estimate_time_offsets: hold the mean of the offsets at 0 (the
+  // LiDAR clock, which the splines' samples use, is the reference on
+  // average). A common offset of all cameras is otherwise held only by the
+  // loose trajectory prior, and it trades against a common rotation of all
+  // cameras about the turn axis: a platform turning at a mean yaw rate w
+  // makes a common offset d look like a yaw of w * d (22 deg/s x 10 ms =
+  // 0.22 deg), which a loose prior cannot tell apart (README "Camera rotations").
+  bool zero_mean_time_offsets = true;
   // Gauge with spline priors: a weak prior of every spline to its initial
   // (LiDAR) samples keeps the solution in the LiDAR map frame (6 DoF; the
   // metric scale comes from the fixed CAD translations). 0 for either sigma

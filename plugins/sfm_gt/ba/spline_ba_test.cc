@@ -115,23 +115,31 @@ TEST(SplineBA, EstimatesCameraClockOffsets) {
   EXPECT_LT(run.final.position_rms_m, 0.01);
   EXPECT_LT(run.final.rotation_rms_deg, 0.1);
   EXPECT_LT(run.final.focal_max_rel, 0.005);
-  // Measured 0.051 deg (0.078 without the offsets, full model above).
-  EXPECT_LT(run.final.extrinsic_rotation_max_deg, 0.06);
-  // True offset of sensor s: mean of (capture time - timestamp) over its images.
+  // Measured 0.037 deg (0.051 with a free mean offset, 0.078 without the
+  // offsets, full model above).
+  EXPECT_LT(run.final.extrinsic_rotation_max_deg, 0.05);
+  // True offset of sensor s: mean of (capture time - timestamp) over its
+  // images. The estimates have zero mean (zero_mean_time_offsets, the
+  // default), so they are compared with the true offsets less their mean.
   const SyntheticScene& scene = Scene();
+  std::vector<double> truth(problem.sensors.size(), 0.0);
+  double truth_mean = 0, estimate_sum = 0;
   for (size_t s = 0; s < problem.sensors.size(); ++s) {
-    double sum = 0;
     int n = 0;
     for (size_t i = 0; i < scene.truth.images.size(); ++i)
       if (scene.truth.images[i].sensor == static_cast<int>(s)) {
-        sum += scene.capture_time_s[i] - scene.truth.images[i].time_s;
+        truth[s] += scene.capture_time_s[i] - scene.truth.images[i].time_s;
         ++n;
       }
-    std::printf("  sensor %zu: clock offset %.2f ms, estimated %.2f ms\n", s, 1e3 * sum / n,
-                1e3 * problem.sensors[s].time_offset_s);
-    // Measured within 2.2 ms: the common part of the offsets is only weakly
-    // fixed (by the LiDAR samples' timing through the 5 cm gauge prior).
-    EXPECT_NEAR(problem.sensors[s].time_offset_s, sum / n, 0.003);
+    truth[s] /= n;
+    truth_mean += truth[s] / problem.sensors.size();
+    estimate_sum += problem.sensors[s].time_offset_s;
+  }
+  EXPECT_NEAR(estimate_sum, 0.0, 1e-5);
+  for (size_t s = 0; s < problem.sensors.size(); ++s) {
+    std::printf("  sensor %zu: clock offset %.2f ms (%.2f ms from the mean), estimated %.2f ms\n", s,
+                1e3 * truth[s], 1e3 * (truth[s] - truth_mean), 1e3 * problem.sensors[s].time_offset_s);
+    EXPECT_NEAR(problem.sensors[s].time_offset_s, truth[s] - truth_mean, 0.0015);  // measured 0.71 ms
   }
 }
 
