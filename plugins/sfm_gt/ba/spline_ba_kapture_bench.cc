@@ -69,7 +69,7 @@ struct Options {
   double pose_sigma_m = -1, pose_sigma_deg = -1;
   int time_offsets = 0;
   std::string align = "sequence";
-  double eta = 0.1, function_tolerance = 1e-6;
+  double eta = 0.1, function_tolerance = 1e-6, point_noise = 0.05;
   double perturb_focal_percent = 0, perturb_rotation_deg = 0;
 };
 
@@ -98,6 +98,7 @@ int main(int argc, char** argv) {
     else if (a == "--time-offsets") o.time_offsets = std::atoi(v.c_str());
     else if (a == "--align") o.align = v;
     else if (a == "--eta") o.eta = std::atof(v.c_str());
+    else if (a == "--point-noise") o.point_noise = std::atof(v.c_str());
     else if (a == "--function-tolerance") o.function_tolerance = std::atof(v.c_str());
     else if (a == "--perturb-focal-percent") o.perturb_focal_percent = std::atof(v.c_str());
     else if (a == "--perturb-rotation-deg") o.perturb_rotation_deg = std::atof(v.c_str());
@@ -213,7 +214,7 @@ int main(int argc, char** argv) {
       track[0].second = cam.Project(Twc.Inverse() * X);
       const int pid = static_cast<int>(truth.points.size());
       truth.points.push_back({X});
-      init.points.push_back({X + 0.05 * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))});
+      init.points.push_back({X + o.point_noise * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))});
       for (const auto& [j, p] : track) {
         const Eigen::Vector2d noisy = p + o.pixel_noise * Eigen::Vector2d(normal(rng), normal(rng));
         truth.observations.push_back({j, pid, noisy});
