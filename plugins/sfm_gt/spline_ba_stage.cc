@@ -178,6 +178,7 @@ class OuterLoop {
   std::string type_;
   State state_;
   std::vector<std::vector<Pose>> fitted_;  // spline-evaluated rig poses of the last round
+  std::vector<Pose> alignments_;          // per sequence, last round (align_trajectories)
   Timestamp t0_ = 0;
   colmap_stages::DbImages ids_;
   std::map<colmap::CameraId, std::string> sensor_of_;
@@ -307,6 +308,11 @@ void OuterLoop::Run() {
     ba.prior_sigma_translation_m = o_.prior_sigma_translation_m;
     ba.trajectory_prior_sigma_rotation_rad = o_.trajectory_prior_sigma_rotation_deg * M_PI / 180.0;
     ba.trajectory_prior_sigma_translation_m = o_.trajectory_prior_sigma_translation_m;
+    // The alignment needs the trajectory prior it corrects.
+    ba.align_trajectories = o_.align_trajectories && o_.use_spline_prior &&
+                            o_.trajectory_prior_sigma_rotation_deg > 0 && o_.trajectory_prior_sigma_translation_m > 0;
+    ba.alignment_sigma_rotation_rad = o_.alignment_sigma_rotation_deg * M_PI / 180.0;
+    ba.alignment_sigma_translation_m = o_.alignment_sigma_translation_m;
     ba.refine_principal_point = o_.refine_principal_point;
     ba.cauchy_scale_px = o_.cauchy_scale_px;
     ba.max_iterations = o_.max_iterations;
@@ -338,6 +344,7 @@ void OuterLoop::Run() {
     // drift from round to round.
     for (size_t q = 0; q < problem.trajectories.size(); ++q)
       fitted_[q] = problem.trajectories[q].T_world_body;
+    alignments_ = result.trajectory_alignments;
     const PoseChange change = Compare(previous, state_);
     const double after = result.final_mean_reproj_px;
     ctx_.Info("round " + std::to_string(round) + ": filter " + FormatDouble(threshold) + " px, " +
@@ -396,6 +403,30 @@ void OuterLoop::Run() {
     WriteFileAtomic(out_ / "time_offsets.csv", offsets.Csv());
     ctx_.Info(line);
   }
+  // The images' correction of the LiDAR merge, per sequence (last round).
+  std::string alignments_json;
+  if (!alignments_.empty()) {
+    TextTable table;
+    table.header = {"sequence", "first timestamp", "translation (cm)", "rotation (deg)", "yaw (deg)"};
+    std::string line = "sequence alignments (images vs LiDAR merge):";
+    for (size_t q = 0; q < alignments_.size() && q < state_.sequences.size(); ++q) {
+      const Pose& g = alignments_[q];
+      // Translation at the sequence's first pose: what the correction moves it by.
+      const Eigen::Vector3d p = state_.sequences[q].T_world_rig.front().t;
+      const double moved_cm = 100 * (g * p - p).norm();
+      const double angle_deg = Eigen::AngleAxisd(g.q).angle() * 180 / M_PI;
+      const Eigen::Vector3d x = g.q * Eigen::Vector3d::UnitX();
+      const double yaw_deg = std::atan2(x.y(), x.x()) * 180 / M_PI;
+      table.rows.push_back({std::to_string(q), std::to_string(state_.sequences[q].timestamps.front()),
+                            Fixed(moved_cm, 2), Fixed(angle_deg, 4), Fixed(yaw_deg, 4)});
+      line += " " + std::to_string(q) + ": " + Fixed(moved_cm, 2) + " cm / " + Fixed(angle_deg, 3) + " deg";
+      alignments_json += std::string(q ? ", " : "") + "{\"sequence\": " + std::to_string(q) +
+                         ", \"translation_m\": " + FormatDouble(moved_cm / 100) +
+                         ", \"rotation_deg\": " + FormatDouble(angle_deg) + "}";
+    }
+    WriteFileAtomic(out_ / "alignments.csv", table.Csv());
+    ctx_.Info(line);
+  }
   std::ostringstream json;
   json << "{\n  \"rounds\": " << rounds_done << ",\n  \"converged\": " << (converged ? "true" : "false")
        << ",\n  \"images\": " << model.images.size() << ",\n  \"points\": " << model.points3d.size()
@@ -403,6 +434,7 @@ void OuterLoop::Run() {
        << ",\n  \"final_mean_reprojection_px\": " << FormatDouble(final_reproj.mean_px)
        << ",\n  \"total_position_change_m\": " << FormatDouble(total.position_m)
        << ",\n  \"total_rotation_change_deg\": " << FormatDouble(total.rotation_deg)
+       << ",\n  \"sequence_alignments\": [" << alignments_json << "]"
        << ",\n  \"seconds\": " << FormatDouble(Since(start)) << "\n}\n";
   WriteFileAtomic(out_ / "spline_ba.json", json.str());
 }

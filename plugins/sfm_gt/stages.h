@@ -76,6 +76,13 @@ struct SplineBAStageOptions {
   // focal drift on `tiny` (one 8 s sequence). README "Why the positions stayed".
   double trajectory_prior_sigma_rotation_deg = 0.2;  // rotation (0: off)
   double trajectory_prior_sigma_translation_m = 0.03;  // translation (0: off)
+  // Let each sequence but the first move rigidly against its LiDAR poses:
+  // the images, not the LiDAR merge, place the sequences relative to each
+  // other (ba/spline_ba.h; README "Sequence alignment"). Weak prior of each
+  // alignment to the LiDAR merge (keeps an unconnected sequence where it is).
+  bool align_trajectories = true;
+  double alignment_sigma_rotation_deg = 3.0;
+  double alignment_sigma_translation_m = 1.0;
   bool refine_principal_point = true;   // With calibrate_intrinsics: also the principal point.
   double cauchy_scale_px = 2.0;         // Cauchy loss scale of reprojection residuals.
   bool estimate_time_offsets = false;   // One clock offset per camera (not in the paper; README).
@@ -111,6 +118,12 @@ struct SplineBAStageOptions {
           "prior of each spline to its initial (LiDAR) poses, rotation sigma (deg; 0: off)").Min(0);
     s.Add("trajectory_prior_sigma_translation_m", &O::trajectory_prior_sigma_translation_m,
           "prior of each spline to its initial (LiDAR) poses, translation sigma (m; 0: off)").Min(0);
+    s.Add("align_trajectories", &O::align_trajectories,
+          "estimate a rigid correction of each sequence's LiDAR poses but the first (the images place the sequences)");
+    s.Add("alignment_sigma_rotation_deg", &O::alignment_sigma_rotation_deg,
+          "align_trajectories: prior of each correction to the LiDAR merge, rotation sigma (deg)").Min(1e-6);
+    s.Add("alignment_sigma_translation_m", &O::alignment_sigma_translation_m,
+          "align_trajectories: prior of each correction to the LiDAR merge, translation sigma (m)").Min(1e-9);
     s.Add("refine_principal_point", &O::refine_principal_point, "with calibrate_intrinsics: also the principal points");
     s.Add("cauchy_scale_px", &O::cauchy_scale_px, "Cauchy loss scale of reprojection residuals (px)").Min(1e-3);
     s.Add("estimate_time_offsets", &O::estimate_time_offsets,
@@ -156,7 +169,7 @@ class SplineBAStage : public Stage<SplineBAStageOptions> {
              {"trajectories", "kapture.trajectories", "the same folder, as refined poses"},
              {"model", "colmap.model", "model/ + database.db"},
              {"reconstruction", "kapture.reconstruction", "points3d.txt, observations.txt, keypoints"},
-             {"report", "report", "table4.md/.csv, rounds.md/.csv, spline_ba.json"}}};
+             {"report", "report", "table4.md/.csv, rounds.md/.csv, spline_ba.json, alignments.csv"}}};
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override;

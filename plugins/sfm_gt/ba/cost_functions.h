@@ -122,6 +122,34 @@ struct SplineSampleError {
   Eigen::Matrix<double, 6, 1> sqrt_info;
 };
 
+// The LiDAR prior of a spline whose trajectory may move rigidly as a whole
+// (SplineBAOptions::align_trajectories): the samples are compared after the
+// trajectory's alignment G (a control-pose-like block, world-from-LiDAR-world):
+//   e = sqrt_info * Log( (G * T_measured)^-1 * T_wb(t) ).
+struct AlignedSplineSampleError {
+  AlignedSplineSampleError(double u, const Pose& measured, const Eigen::Matrix<double, 6, 1>& sqrt_info)
+      : u(u), measured_inverse(measured.Inverse()), sqrt_info(sqrt_info) {}
+
+  template <typename T>
+  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* g, T* residual) const {
+    PoseT<T> M;
+    M.q = measured_inverse.q.cast<T>();
+    M.t = measured_inverse.t.cast<T>();
+    const Eigen::Matrix<T, 6, 1> e = LogSE3T(M * PoseT<T>::FromArray(g).Inverse() * EvaluateSegment(c0, c1, c2, c3, u));
+    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double u, const Pose& measured,
+                                     const Eigen::Matrix<double, 6, 1>& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<AlignedSplineSampleError, 6, 7, 7, 7, 7, 7>(
+        new AlignedSplineSampleError(u, measured, sqrt_info));
+  }
+  double u;
+  Pose measured_inverse;
+  Eigen::Matrix<double, 6, 1> sqrt_info;
+};
+
 // Pull of a control pose to a fixed value (keeps segments without data
 // determined): e = sqrt_info * Log( T_ref^-1 * T_control ).
 struct ControlPoseError {

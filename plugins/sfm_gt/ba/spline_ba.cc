@@ -23,6 +23,10 @@ std::string SplineBAOptions::CheckMessage() const {
     return "trajectory_prior_sigma_rotation_rad must be >= 0 (0: off)";
   if (!(trajectory_prior_sigma_translation_m >= 0) || !std::isfinite(trajectory_prior_sigma_translation_m))
     return "trajectory_prior_sigma_translation_m must be >= 0 (0: off)";
+  if (!positive(alignment_sigma_rotation_rad)) return "alignment_sigma_rotation_rad must be > 0";
+  if (!positive(alignment_sigma_translation_m)) return "alignment_sigma_translation_m must be > 0";
+  if (align_trajectories && !(trajectory_prior_sigma_rotation_rad > 0 && trajectory_prior_sigma_translation_m > 0))
+    return "align_trajectories needs the trajectory prior (trajectory_prior_sigma_* > 0)";
   if (!positive(cauchy_scale_px)) return "cauchy_scale_px must be > 0";
   if (max_iterations < 0) return "max_iterations must be >= 0";
   if (!(function_tolerance >= 0) || !(gradient_tolerance >= 0) || !(parameter_tolerance >= 0))
@@ -88,6 +92,7 @@ struct Parameters {
   std::vector<double> time_offsets;  // per sensor, seconds
   std::vector<SE3Spline> splines;  // per trajectory (empty control: none)
   std::vector<std::vector<std::array<double, 7>>> controls;
+  std::vector<std::array<double, 7>> alignments;  // per trajectory, world-from-LiDAR-world
 };
 
 void CopyIn(const BAProblem& p, Parameters* x) {
@@ -148,6 +153,7 @@ void CopyOut(const Parameters& x, bool splines, BAProblem* p, SplineBAResult* re
   }
   if (!splines) return;
   result->splines = x.splines;
+  for (const auto& g : x.alignments) result->trajectory_alignments.push_back(PoseFromArray(g.data()));
   for (size_t t = 0; t < p->trajectories.size(); ++t) {
     SE3Spline& spline = result->splines[t];
     if (x.controls[t].empty()) continue;
@@ -262,10 +268,19 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
                                                   options.trajectory_prior_sigma_translation_m)
                                 : Eigen::Matrix<double, 6, 1>::Zero().eval();
     bool fixed_one = false;
+    std::array<double, 7> identity;
+    PoseToArray(Pose(), identity.data());
+    x.alignments.assign(x.controls.size(), identity);
+    const auto wa = SqrtInformation(options.alignment_sigma_rotation_rad, options.alignment_sigma_translation_m);
+    bool reference_taken = false;
     for (size_t t = 0; t < x.controls.size(); ++t) {
       auto& c = x.controls[t];
       if (c.empty()) continue;
       const auto& tr = problem->trajectories[t];
+      // The first trajectory with images is the reference of the alignments.
+      double* g = nullptr;
+      if (options.align_trajectories && reference_taken) g = x.alignments[t].data();
+      reference_taken = true;
       // Every control pose needs a residual to be in the problem; controls
       // no image touches are simply not adjusted (and written back as fitted).
       if (gauge_prior) {
@@ -273,8 +288,17 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
           int s;
           double u;
           x.splines[t].Locate(tr.times_s[i], &s, &u);
-          ceres_problem.AddResidualBlock(SplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr, c[s].data(),
-                                         c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
+          if (g)
+            ceres_problem.AddResidualBlock(AlignedSplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr,
+                                           c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), g);
+          else
+            ceres_problem.AddResidualBlock(SplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr,
+                                           c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
+          ++result.num_prior_residuals;
+        }
+        if (g) {
+          ceres_problem.AddResidualBlock(ControlPoseError::Create(Pose(), wa), nullptr, g);
+          ceres_problem.SetManifold(g, &se3);
           ++result.num_prior_residuals;
         }
       }

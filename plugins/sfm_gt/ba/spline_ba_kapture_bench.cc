@@ -69,14 +69,43 @@ struct Options {
   double pose_sigma_m = -1, pose_sigma_deg = -1;
   int time_offsets = 0;
   std::string align = "sequence";
-  double eta = 0.1, function_tolerance = 1e-6, point_noise = 0.05;
+  double eta = -1, function_tolerance = 1e-6, point_noise = 0.05;  // eta < 0: SplineBAOptions' default
   double perturb_focal_percent = 0, perturb_rotation_deg = 0;
 };
 
 }  // namespace
 
+const char kUsage[] =
+    "usage: locforge_spline_ba_kapture_bench --recording DIR --slam DIR [options]\n"
+    "Time, memory and accuracy of the spline BA on a recording's geometry with synthetic landmarks.\n"
+    "  --recording DIR            kapture recording with the true poses (sensors/trajectories.txt)\n"
+    "  --slam DIR                 slam/pose_graph output (its rig poses start the splines)\n"
+    "  --seeds N (10)             landmarks seeded per image\n"
+    "  --max-track N (10)         longest track kept\n"
+    "  --threads T (2)            Ceres threads\n"
+    "  --iterations I (50)        solver iterations\n"
+    "  --solver S (auto)          auto | sparse_schur | iterative_schur\n"
+    "  --eta E                    iterative_schur forcing sequence (default: SplineBAOptions', 0.001)\n"
+    "  --function-tolerance F (1e-6)\n"
+    "  --intrinsics-scale S (100) multiply the recording's intrinsics (1 %-scale recordings)\n"
+    "  --min-depth M (1.5) --max-depth M (12) --max-angle D (45)  landmark geometry\n"
+    "  --pixel-noise P (0.5)      observation noise per coordinate (px)\n"
+    "  --point-noise M (0.05)     start landmarks moved by N(0, M^2) per coordinate (m)\n"
+    "  --trajectory-sigma-m M --trajectory-sigma-deg D  spline-to-LiDAR prior (default: SplineBAOptions')\n"
+    "  --pose-sigma-m M --pose-sigma-deg D              spline pose error of each image\n"
+    "  --time-offsets 0|1 (0)     estimate one clock offset per camera\n"
+    "  --align sequence|global (sequence)  rigid alignment of the SLAM output to the truth\n"
+    "  --perturb-focal-percent P --perturb-rotation-deg D  start calibration moved (as calib/perturb)\n";
+
 int main(int argc, char** argv) {
   Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+  }
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--recording") o.recording = v;
@@ -108,7 +137,7 @@ int main(int argc, char** argv) {
     }
   }
   if (o.recording.empty() || o.slam.empty()) {
-    std::fprintf(stderr, "usage: %s --recording DIR --slam DIR [options, see the source]\n", argv[0]);
+    std::fputs(kUsage, stderr);
     return 2;
   }
   const auto t_start = std::chrono::steady_clock::now();
@@ -276,7 +305,7 @@ int main(int argc, char** argv) {
   if (o.pose_sigma_m > 0) options.prior_sigma_translation_m = o.pose_sigma_m;
   if (o.pose_sigma_deg > 0) options.prior_sigma_rotation_rad = o.pose_sigma_deg * M_PI / 180.0;
   options.estimate_time_offsets = o.time_offsets != 0;
-  options.iterative_eta = o.eta;
+  if (o.eta > 0) options.iterative_eta = o.eta;
   options.function_tolerance = o.function_tolerance;
   if (!options.Check()) {
     std::fprintf(stderr, "%s\n", options.CheckMessage().c_str());
