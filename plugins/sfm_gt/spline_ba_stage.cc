@@ -314,6 +314,7 @@ void OuterLoop::Run() {
     ba.alignment_sigma_rotation_rad = o_.alignment_sigma_rotation_deg * M_PI / 180.0;
     ba.alignment_sigma_translation_m = o_.alignment_sigma_translation_m;
     ba.refine_principal_point = o_.refine_principal_point;
+    ba.fix_aspect_ratio = o_.fix_aspect_ratio;
     ba.cauchy_scale_px = o_.cauchy_scale_px;
     ba.max_iterations = o_.max_iterations;
     ba.estimate_time_offsets = o_.estimate_time_offsets;

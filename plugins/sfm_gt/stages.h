@@ -84,6 +84,7 @@ struct SplineBAStageOptions {
   double alignment_sigma_rotation_deg = 3.0;
   double alignment_sigma_translation_m = 1.0;
   bool refine_principal_point = true;   // With calibrate_intrinsics: also the principal point.
+  bool fix_aspect_ratio = true;         // With calibrate_intrinsics: keep fy / fx (fx, fy move together).
   double cauchy_scale_px = 2.0;         // Cauchy loss scale of reprojection residuals.
   bool estimate_time_offsets = false;   // One clock offset per camera (not in the paper; README).
   double max_time_offset_s = 0.05;      // Bound of each estimated clock offset (s, < knot_spacing_s).
@@ -125,6 +126,8 @@ struct SplineBAStageOptions {
     s.Add("alignment_sigma_translation_m", &O::alignment_sigma_translation_m,
           "align_trajectories: prior of each correction to the LiDAR merge, translation sigma (m)").Min(1e-9);
     s.Add("refine_principal_point", &O::refine_principal_point, "with calibrate_intrinsics: also the principal points");
+    s.Add("fix_aspect_ratio", &O::fix_aspect_ratio,
+          "with calibrate_intrinsics: keep fy / fx of PINHOLE / OPENCV cameras (planar motion leaves fy nearly unobservable)");
     s.Add("cauchy_scale_px", &O::cauchy_scale_px, "Cauchy loss scale of reprojection residuals (px)").Min(1e-3);
     s.Add("estimate_time_offsets", &O::estimate_time_offsets,
           "estimate one clock offset per camera (image i tied to the spline at t_i + offset); time_offsets.csv");

@@ -3,6 +3,8 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/QR>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -80,6 +82,68 @@ bool InFront(const BAProblem& problem, const BAProblem::Observation& o, Eigen::V
   if (!(p.z() > 0)) return false;
   *xy = problem.sensors[im.sensor].camera.Project(p);
   return true;
+}
+
+// The intrinsics of a camera restricted to a linear subspace, x = x0 + B d:
+// fx and fy moving together (fix_aspect_ratio keeps fy / fx at its initial
+// value) and/or the principal point held (refine_principal_point = false).
+class LinearSubspaceManifold : public ceres::Manifold {
+ public:
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  explicit LinearSubspaceManifold(const Eigen::MatrixXd& basis)
+      : basis_(basis), pseudo_inverse_(basis.completeOrthogonalDecomposition().pseudoInverse()) {}
+  int AmbientSize() const override { return static_cast<int>(basis_.rows()); }
+  int TangentSize() const override { return static_cast<int>(basis_.cols()); }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    Eigen::Map<Eigen::VectorXd>(x_plus_delta, AmbientSize()) =
+        Eigen::Map<const Eigen::VectorXd>(x, AmbientSize()) +
+        basis_ * Eigen::Map<const Eigen::VectorXd>(delta, TangentSize());
+    return true;
+  }
+  bool PlusJacobian(const double*, double* jacobian) const override {
+    Eigen::Map<RowMajor>(jacobian, AmbientSize(), TangentSize()) = basis_;
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    Eigen::Map<Eigen::VectorXd>(y_minus_x, TangentSize()) =
+        pseudo_inverse_ * (Eigen::Map<const Eigen::VectorXd>(y, AmbientSize()) -
+                           Eigen::Map<const Eigen::VectorXd>(x, AmbientSize()));
+    return true;
+  }
+  bool MinusJacobian(const double*, double* jacobian) const override {
+    Eigen::Map<RowMajor>(jacobian, TangentSize(), AmbientSize()) = pseudo_inverse_;
+    return true;
+  }
+
+ private:
+  Eigen::MatrixXd basis_, pseudo_inverse_;
+};
+
+// Basis of the free intrinsics of one camera (columns), empty when nothing
+// is restricted (the block then moves freely).
+Eigen::MatrixXd IntrinsicsBasis(CameraModelId model, const std::vector<double>& params, bool fix_aspect_ratio,
+                                bool refine_principal_point) {
+  const int n = static_cast<int>(params.size());
+  const int pp = PrincipalPointIndex(model);
+  const bool two_focals = pp == 2;  // fx, fy (PINHOLE, OPENCV)
+  const bool tie = fix_aspect_ratio && two_focals && params[0] != 0;
+  if (!tie && refine_principal_point) return {};
+  std::vector<Eigen::VectorXd> columns;
+  auto unit = [n](int i) {
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(n);
+    e(i) = 1;
+    return e;
+  };
+  for (int i = 0; i < n; ++i) {
+    if (i == 1 && tie) continue;  // moves with fx
+    if ((i == pp || i == pp + 1) && !refine_principal_point) continue;
+    Eigen::VectorXd e = unit(i);
+    if (i == 0 && tie) e(1) = params[1] / params[0];
+    columns.push_back(e);
+  }
+  Eigen::MatrixXd basis(n, static_cast<int>(columns.size()));
+  for (size_t k = 0; k < columns.size(); ++k) basis.col(static_cast<Eigen::Index>(k)) = columns[k];
+  return basis;
 }
 
 // The Ceres parameter storage of a problem.
@@ -315,7 +379,7 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
 
   // Manifolds and what is held constant.
   std::unique_ptr<ceres::SubsetManifold> scale_gauge;
-  std::vector<std::unique_ptr<ceres::SubsetManifold>> pp_fixed;
+  std::vector<std::unique_ptr<LinearSubspaceManifold>> restricted_intrinsics;
   for (size_t i = 0; i < problem->images.size(); ++i)
     if (image_observed[i]) ceres_problem.SetManifold(x.image_q[i].data(), &quaternion);
   if (!splines && options.fix_gauge) {
@@ -343,11 +407,13 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
     if (ceres_problem.HasParameterBlock(k)) {
       if (!(options.calibrate_intrinsics && sensor.calibrate_intrinsics)) {
         ceres_problem.SetParameterBlockConstant(k);
-      } else if (!options.refine_principal_point) {
-        const int pp = PrincipalPointIndex(sensor.camera.model);
-        pp_fixed.push_back(std::make_unique<ceres::SubsetManifold>(static_cast<int>(x.intrinsics[s].size()),
-                                                                   std::vector<int>{pp, pp + 1}));
-        ceres_problem.SetManifold(k, pp_fixed.back().get());
+      } else {
+        const Eigen::MatrixXd basis = IntrinsicsBasis(sensor.camera.model, x.intrinsics[s],
+                                                      options.fix_aspect_ratio, options.refine_principal_point);
+        if (basis.size() > 0) {
+          restricted_intrinsics.push_back(std::make_unique<LinearSubspaceManifold>(basis));
+          ceres_problem.SetManifold(k, restricted_intrinsics.back().get());
+        }
       }
     }
     double* q = x.q_body_camera[s].data();

@@ -186,6 +186,37 @@ TEST(SplineBA, AlignsAMisplacedSequence) {
   EXPECT_LT(residual_deg, 0.08);
 }
 
+// fix_aspect_ratio (the default) moves fx and fy of the two-focal models
+// together: fy / fx stays at its start value while the focal lengths are
+// still calibrated; without it both move on their own.
+TEST(SplineBA, FixedAspectRatioKeepsFyOverFx) {
+  const SyntheticScene& scene = Scene();
+  auto ratio = [](const BAProblem::Sensor& s) { return s.camera.params[1] / s.camera.params[0]; };
+  for (const bool fix : {true, false}) {
+    SplineBAOptions options = Options();
+    options.fix_aspect_ratio = fix;
+    options.max_iterations = 20;
+    BAProblem problem;
+    const Outcome run = Solve(fix ? "aspect fixed" : "aspect free", scene, options, &problem);
+    ASSERT_TRUE(run.result.usable) << run.result.message;
+    EXPECT_LT(run.final.focal_max_rel, 0.005);
+    int two_focal = 0;
+    for (size_t s = 0; s < problem.sensors.size(); ++s) {
+      const auto model = problem.sensors[s].camera.model;
+      if (model != CameraModelId::kPinhole && model != CameraModelId::kOpenCV) continue;
+      ++two_focal;
+      const double start = ratio(scene.initial.sensors[s]), end = ratio(problem.sensors[s]);
+      if (fix)
+        EXPECT_NEAR(end, start, 1e-12) << "sensor " << s;
+      else
+        EXPECT_GT(std::abs(end - start), 1e-6) << "sensor " << s;
+      EXPECT_GT(std::abs(problem.sensors[s].camera.params[0] / scene.initial.sensors[s].camera.params[0] - 1), 0.02)
+          << "sensor " << s << ": the focal length was calibrated (it started 3 % off)";
+    }
+    EXPECT_GE(two_focal, 2);
+  }
+}
+
 TEST(SplineBA, BadOptionsAreRejectedWithAMessage) {
   SplineBAOptions o;
   EXPECT_TRUE(o.Check());
