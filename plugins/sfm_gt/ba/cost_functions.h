@@ -96,20 +96,23 @@ struct SplinePoseError {
   Eigen::Matrix<double, 6, 1> sqrt_info;
 };
 
-// Spline vs a measured body pose (fitting, and the weak LiDAR gauge prior):
-//   e = sqrt_info * Log( T_measured^-1 * T_wb(t) ).
+// Spline vs a measured body pose (fitting, and the LiDAR trajectory prior):
+//   e = sqrt_info * Log( T_measured^-1 * T_wb(t) ),
+// or, for a trajectory that may move rigidly as a whole
+// (SplineBAOptions::align_trajectories), after its alignment G (a
+// control-pose-like block, world-from-LiDAR-world; CreateAligned):
+//   e = sqrt_info * Log( (G * T_measured)^-1 * T_wb(t) ).
 struct SplineSampleError {
   SplineSampleError(double u, const Pose& measured, const Eigen::Matrix<double, 6, 1>& sqrt_info)
       : u(u), measured_inverse(measured.Inverse()), sqrt_info(sqrt_info) {}
 
   template <typename T>
   bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, T* residual) const {
-    PoseT<T> M;
-    M.q = measured_inverse.q.cast<T>();
-    M.t = measured_inverse.t.cast<T>();
-    const Eigen::Matrix<T, 6, 1> e = LogSE3T(M * EvaluateSegment(c0, c1, c2, c3, u));
-    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
-    return true;
+    return Residual(MeasuredInverse<T>(), c0, c1, c2, c3, residual);
+  }
+  template <typename T>
+  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* g, T* residual) const {
+    return Residual(MeasuredInverse<T>() * PoseT<T>::FromArray(g).Inverse(), c0, c1, c2, c3, residual);
   }
 
   static ceres::CostFunction* Create(double u, const Pose& measured,
@@ -117,37 +120,31 @@ struct SplineSampleError {
     return new ceres::AutoDiffCostFunction<SplineSampleError, 6, 7, 7, 7, 7>(
         new SplineSampleError(u, measured, sqrt_info));
   }
+  static ceres::CostFunction* CreateAligned(double u, const Pose& measured,
+                                            const Eigen::Matrix<double, 6, 1>& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<SplineSampleError, 6, 7, 7, 7, 7, 7>(
+        new SplineSampleError(u, measured, sqrt_info));
+  }
   double u;
   Pose measured_inverse;
   Eigen::Matrix<double, 6, 1> sqrt_info;
-};
 
-// The LiDAR prior of a spline whose trajectory may move rigidly as a whole
-// (SplineBAOptions::align_trajectories): the samples are compared after the
-// trajectory's alignment G (a control-pose-like block, world-from-LiDAR-world):
-//   e = sqrt_info * Log( (G * T_measured)^-1 * T_wb(t) ).
-struct AlignedSplineSampleError {
-  AlignedSplineSampleError(double u, const Pose& measured, const Eigen::Matrix<double, 6, 1>& sqrt_info)
-      : u(u), measured_inverse(measured.Inverse()), sqrt_info(sqrt_info) {}
-
+ private:
   template <typename T>
-  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* g, T* residual) const {
+  PoseT<T> MeasuredInverse() const {
     PoseT<T> M;
     M.q = measured_inverse.q.cast<T>();
     M.t = measured_inverse.t.cast<T>();
-    const Eigen::Matrix<T, 6, 1> e = LogSE3T(M * PoseT<T>::FromArray(g).Inverse() * EvaluateSegment(c0, c1, c2, c3, u));
+    return M;
+  }
+  // `world_to_measured`: T_measured^-1, or (G T_measured)^-1.
+  template <typename T>
+  bool Residual(const PoseT<T>& world_to_measured, const T* c0, const T* c1, const T* c2, const T* c3,
+                T* residual) const {
+    const Eigen::Matrix<T, 6, 1> e = LogSE3T(world_to_measured * EvaluateSegment(c0, c1, c2, c3, u));
     for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
     return true;
   }
-
-  static ceres::CostFunction* Create(double u, const Pose& measured,
-                                     const Eigen::Matrix<double, 6, 1>& sqrt_info) {
-    return new ceres::AutoDiffCostFunction<AlignedSplineSampleError, 6, 7, 7, 7, 7, 7>(
-        new AlignedSplineSampleError(u, measured, sqrt_info));
-  }
-  double u;
-  Pose measured_inverse;
-  Eigen::Matrix<double, 6, 1> sqrt_info;
 };
 
 // Pull of a control pose to a fixed value (keeps segments without data

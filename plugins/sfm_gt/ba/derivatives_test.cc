@@ -136,6 +136,11 @@ TEST(Derivatives, SplinePoseAndSampleErrors) {
         SplineSampleError::Create(u, spline.Evaluate(u) * ExpSE3(random_twist(0.01)), w));
     const Blocks xs(x.begin(), x.begin() + 4);
     EXPECT_LT(MaxRelativeJacobianError(*sample, xs, {&se3, &se3, &se3, &se3}), 1e-6) << trial;
+    std::unique_ptr<ceres::CostFunction> aligned(
+        SplineSampleError::CreateAligned(u, spline.Evaluate(u) * ExpSE3(random_twist(0.01)), w));
+    Blocks xa = xs;
+    xa.push_back(PoseArray(ExpSE3(random_twist(degenerate ? 0.0 : 0.05))));
+    EXPECT_LT(MaxRelativeJacobianError(*aligned, xa, {&se3, &se3, &se3, &se3, &se3}), 1e-6) << trial;
     std::unique_ptr<ceres::CostFunction> smooth(ControlSmoothnessError::Create(w));
     const Blocks x3(x.begin(), x.begin() + 3);
     EXPECT_LT(MaxRelativeJacobianError(*smooth, x3, {&se3, &se3, &se3}), 1e-6) << trial;

@@ -353,7 +353,7 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
           double u;
           x.splines[t].Locate(tr.times_s[i], &s, &u);
           if (g)
-            ceres_problem.AddResidualBlock(AlignedSplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr,
+            ceres_problem.AddResidualBlock(SplineSampleError::CreateAligned(u, tr.T_world_body[i], wg), nullptr,
                                            c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), g);
           else
             ceres_problem.AddResidualBlock(SplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr,
