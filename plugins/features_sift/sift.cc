@@ -55,6 +55,16 @@ std::vector<uint8_t> DescriptorsToUint8(const std::vector<float>& descriptors) {
   return out;
 }
 
+// OpenCV's SIFT (4.6) works on the image doubled by a pixel-centre-aligned
+// bilinear resize (pixel i -> 2 i + 0.5) and reports the doubled image's
+// coordinates halved (p -> p / 2), so every keypoint is 0.25 px right of and
+// below its true position, at every octave (higher octaves subsample the
+// doubled image from its pixel 0). Measured in sift_test.cc
+// (KeypointsHaveNoSubpixelBias: +0.24 px before the correction). Uncorrected,
+// it shifted every calibrated principal point by ~0.3 px and moved cameras
+// vertically by ~0.5 cm in the ground-truth BA (plugins/sfm_gt/README.md).
+constexpr double kOpenCvSiftOffsetPx = 0.25;
+
 SiftFeatures ExtractSift(const cv::Mat& gray_in, const SiftOptions& o) {
   if (gray_in.empty() || gray_in.type() != CV_8UC1) throw Error("ExtractSift: expected an 8-bit grey image");
   cv::Mat gray = gray_in;
@@ -92,8 +102,12 @@ SiftFeatures ExtractSift(const cv::Mat& gray_in, const SiftOptions& o) {
   out.descriptors.resize(128 * keypoints.size());
   for (size_t i = 0; i < keypoints.size(); ++i) {
     const cv::KeyPoint& kp = keypoints[i];
-    out.keypoints.push_back(static_cast<float>((kp.pt.x + 0.5) / scale));
-    out.keypoints.push_back(static_cast<float>((kp.pt.y + 0.5) / scale));
+    // OpenCV pixel indices (first pixel centre at 0) minus OpenCV's own
+    // offset, then +0.5 to the SDK convention; cv::resize keeps pixel
+    // centres aligned, so dividing by the scale is exact.
+    const double x = kp.pt.x - kOpenCvSiftOffsetPx + 0.5, y = kp.pt.y - kOpenCvSiftOffsetPx + 0.5;
+    out.keypoints.push_back(static_cast<float>(x / scale));
+    out.keypoints.push_back(static_cast<float>(y / scale));
     out.keypoints.push_back(static_cast<float>(kp.size / 2.0 / scale));
     out.keypoints.push_back(static_cast<float>(kp.angle * M_PI / 180.0));
     float* d = &out.descriptors[128 * i];

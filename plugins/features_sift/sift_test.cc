@@ -3,6 +3,8 @@
 // runtime: cap, layout, import of the sample's R2D2 features, conformance.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -140,6 +142,59 @@ TEST(Sift, DownscaledImageKeepsOriginalCoordinates) {
   }
   EXPECT_GT(matches.size(), 50u);
   EXPECT_GT(close, 0.8 * matches.size());
+}
+
+// Gaussian blobs at known sub-pixel centres (pixel indices cx, cy; SDK
+// convention cx + 0.5): the mean offset of the nearest keypoint over many
+// sub-pixel phases is the extractor's bias (OpenCV alone: +0.25 px in x and y).
+struct Bias {
+  int found = 0;
+  double mean_dx = 0, mean_dy = 0;
+};
+
+Bias MeasureBlobBias(const SiftOptions& options) {
+  cv::Mat image(480, 640, CV_8UC1, cv::Scalar(40));
+  cv::Mat acc(image.size(), CV_64F, cv::Scalar(0));
+  std::vector<cv::Point2d> centres;
+  cv::RNG rng(11);
+  for (int gy = 0; gy < 6; ++gy)
+    for (int gx = 0; gx < 8; ++gx)
+      centres.emplace_back(40 + 80 * gx + rng.uniform(-0.5, 0.5), 40 + 80 * gy + rng.uniform(-0.5, 0.5));
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      double v = 0;
+      for (const auto& c : centres) {
+        const double r2 = (x - c.x) * (x - c.x) + (y - c.y) * (y - c.y);
+        if (r2 < 900) v += std::exp(-r2 / (2 * 4.0 * 4.0));
+      }
+      acc.at<double>(y, x) = v;
+    }
+  acc.convertTo(image, CV_8UC1, 180, 40);
+  const SiftFeatures f = ExtractSift(image, options);
+  Bias b;
+  for (const auto& c : centres) {
+    double best = 1.5, dx = 0, dy = 0;  // a blob's keypoint lies within 1.5 px
+    for (int i = 0; i < f.count(); ++i) {
+      const double ex = f.keypoints[4 * i] - (c.x + 0.5), ey = f.keypoints[4 * i + 1] - (c.y + 0.5);
+      if (std::hypot(ex, ey) < best) best = std::hypot(ex, ey), dx = ex, dy = ey;
+    }
+    if (best < 1.5) ++b.found, b.mean_dx += dx, b.mean_dy += dy;
+  }
+  if (b.found) b.mean_dx /= b.found, b.mean_dy /= b.found;
+  return b;
+}
+
+TEST(Sift, KeypointsHaveNoSubpixelBias) {
+  const Bias full = MeasureBlobBias(SiftOptions{});
+  EXPECT_GE(full.found, 44);
+  EXPECT_LT(std::abs(full.mean_dx), 0.05) << full.mean_dx;
+  EXPECT_LT(std::abs(full.mean_dy), 0.05) << full.mean_dy;
+  SiftOptions half;
+  half.max_image_size = 320;  // keypoints found at half size, reported at full size
+  const Bias h = MeasureBlobBias(half);
+  EXPECT_GE(h.found, 44);
+  EXPECT_LT(std::abs(h.mean_dx), 0.1) << h.mean_dx;
+  EXPECT_LT(std::abs(h.mean_dy), 0.1) << h.mean_dy;
 }
 
 // ------------------------------------------------------------ the stages
