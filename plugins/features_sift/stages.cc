@@ -137,5 +137,5 @@ class ImportStage : public Stage<ImportOptions> {
 
 }  // namespace locforge::sift
 
-LOCFORGE_PLUGIN("features_sift", "1.0.0", "OpenCV SIFT local features and feature import",
+LOCFORGE_PLUGIN("features_sift", "1.1.0", "OpenCV SIFT local features and feature import",
                 locforge::sift::SiftStage, locforge::sift::ImportStage)
