@@ -161,7 +161,9 @@ struct PoseGraphSlamOptions {
   double loss_scale = 1.0;          // in whitened residual units
   double sigma_translation = 0.01;  // m, registration edges
   double sigma_rotation = 0.1;      // deg, registration edges
-  double odometry_sigma = 0.02;     // m per m driven, odometry edges (0: none)
+  // m per m driven, odometry edges (0: none). Weak: a wheel radius ~1 % off
+  // otherwise leaks its scale into the map (plugins/lidar/README.md).
+  double odometry_sigma = 0.1;
   double odometry_sigma_rotation = 2;  // deg per m driven
   bool planar = true;               // level-floor prior (wheeled platform)
   double planar_sigma_z = 0.01;     // m
