@@ -231,6 +231,12 @@ SceneErrors CompareToTruth(const BAProblem& est, const BAProblem& truth) {
     }
     e.aligned_position_rms_m = std::sqrt(ap / ni);
     e.aligned_rotation_rms_deg = std::sqrt(ar / ni);
+    const Eigen::Matrix4d S = Eigen::umeyama(src, dst, true);
+    e.similarity_scale_minus_1 = S.block<3, 1>(0, 0).norm() - 1;
+    double sp2 = 0;
+    for (size_t i = 0; i < ni; ++i)
+      sp2 += (S.block<3, 3>(0, 0) * src.col(i) + S.block<3, 1>(0, 3) - dst.col(i)).squaredNorm();
+    e.similarity_position_rms_m = std::sqrt(sp2 / ni);
   }
   for (size_t s = 0; s < truth.sensors.size(); ++s) {
     const Camera& a = est.sensors[s].camera;

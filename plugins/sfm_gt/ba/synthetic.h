@@ -57,6 +57,10 @@ struct SceneErrors {
   // which the BA can only take from the LiDAR trajectory.
   double aligned_position_rms_m = 0;
   double aligned_rotation_rms_deg = 0;
+  // Similarity (Sim(3)) alignment of the centres: its scale - 1 and the
+  // residual (a map too large or too small shows here, not in the shape).
+  double similarity_scale_minus_1 = 0;
+  double similarity_position_rms_m = 0;
   double focal_max_rel = 0;     // max over sensors of |f - f_true| / f_true (fx and fy)
   double extrinsic_rotation_max_deg = 0;  // max over sensors of the T_body_camera rotation error
   double trajectory_position_rms_m = 0;   // trajectory samples vs true body poses
