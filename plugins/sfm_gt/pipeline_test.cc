@@ -69,11 +69,14 @@ TEST(SfmGtPipeline, TinyRecordingRefinedFromPerturbedCalibration) {
   EXPECT_LT(reproj, 1.0);
   // Refined poses closer to the truth than the LiDAR poses (with the
   // perturbed extrinsics), focal lengths and camera rotations recovered.
-  EXPECT_LT(refined.at("position RMS (cm)"), start.at("position RMS (cm)"));
-  EXPECT_LT(refined.at("rotation RMS (deg)"), 0.5 * start.at("rotation RMS (deg)"));
+  // Measured (session 7 defaults: 0.3 s knots, 3 mm image-to-spline, clock
+  // offsets, unbiased SIFT): positions 1.35 -> 0.44 cm, rotations 1.47 ->
+  // 0.069 deg, focal 3 -> 0.096 %, camera rotations 1.5 -> 0.113 deg.
+  EXPECT_LT(refined.at("position RMS (cm)"), 0.6 * start.at("position RMS (cm)"));
+  EXPECT_LT(refined.at("rotation RMS (deg)"), 0.2 * start.at("rotation RMS (deg)"));
   EXPECT_NEAR(start.at("focal error RMS (%)"), 3.0, 1e-6);
-  EXPECT_LT(refined.at("focal error RMS (%)"), 1.5);
-  EXPECT_LT(refined.at("camera rotation RMS (deg)"), 0.5 * start.at("camera rotation RMS (deg)"));
+  EXPECT_LT(refined.at("focal error RMS (%)"), 0.5);
+  EXPECT_LT(refined.at("camera rotation RMS (deg)"), 0.25 * start.at("camera rotation RMS (deg)"));
   fs::remove_all(dir);
 }
 

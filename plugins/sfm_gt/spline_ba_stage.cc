@@ -179,6 +179,7 @@ class OuterLoop {
   State state_;
   std::vector<std::vector<Pose>> fitted_;  // spline-evaluated rig poses of the last round
   std::vector<Pose> alignments_;          // per sequence, last round (align_trajectories)
+  std::vector<double> scales_;            // per sequence, last round (scale_sequences)
   Timestamp t0_ = 0;
   colmap_stages::DbImages ids_;
   std::map<colmap::CameraId, std::string> sensor_of_;
@@ -313,6 +314,8 @@ void OuterLoop::Run() {
                             o_.trajectory_prior_sigma_rotation_deg > 0 && o_.trajectory_prior_sigma_translation_m > 0;
     ba.alignment_sigma_rotation_rad = o_.alignment_sigma_rotation_deg * M_PI / 180.0;
     ba.alignment_sigma_translation_m = o_.alignment_sigma_translation_m;
+    ba.scale_trajectories = o_.scale_sequences && o_.use_spline_prior &&
+                            o_.trajectory_prior_sigma_rotation_deg > 0 && o_.trajectory_prior_sigma_translation_m > 0;
     ba.refine_principal_point = o_.refine_principal_point;
     ba.fix_aspect_ratio = o_.fix_aspect_ratio;
     ba.cauchy_scale_px = o_.cauchy_scale_px;
@@ -346,6 +349,7 @@ void OuterLoop::Run() {
     for (size_t q = 0; q < problem.trajectories.size(); ++q)
       fitted_[q] = problem.trajectories[q].T_world_body;
     alignments_ = result.trajectory_alignments;
+    scales_ = result.trajectory_scales;
     const PoseChange change = Compare(previous, state_);
     const double after = result.final_mean_reproj_px;
     ctx_.Info("round " + std::to_string(round) + ": filter " + FormatDouble(threshold) + " px, " +
@@ -408,22 +412,23 @@ void OuterLoop::Run() {
   std::string alignments_json;
   if (!alignments_.empty()) {
     TextTable table;
-    table.header = {"sequence", "first timestamp", "translation (cm)", "rotation (deg)", "yaw (deg)"};
+    table.header = {"sequence", "first timestamp", "translation (cm)", "rotation (deg)", "yaw (deg)", "scale - 1 (%)"};
     std::string line = "sequence alignments (images vs LiDAR merge):";
     for (size_t q = 0; q < alignments_.size() && q < state_.sequences.size(); ++q) {
       const Pose& g = alignments_[q];
+      const double scale = q < scales_.size() ? scales_[q] : 1.0;
       // Translation at the sequence's first pose: what the correction moves it by.
       const Eigen::Vector3d p = state_.sequences[q].T_world_rig.front().t;
-      const double moved_cm = 100 * (g * p - p).norm();
+      const double moved_cm = 100 * (g * (scale * p) - p).norm();
       const double angle_deg = Eigen::AngleAxisd(g.q).angle() * 180 / M_PI;
       const Eigen::Vector3d x = g.q * Eigen::Vector3d::UnitX();
       const double yaw_deg = std::atan2(x.y(), x.x()) * 180 / M_PI;
       table.rows.push_back({std::to_string(q), std::to_string(state_.sequences[q].timestamps.front()),
-                            Fixed(moved_cm, 2), Fixed(angle_deg, 4), Fixed(yaw_deg, 4)});
+                            Fixed(moved_cm, 2), Fixed(angle_deg, 4), Fixed(yaw_deg, 4), Fixed(100 * (scale - 1), 4)});
       line += " " + std::to_string(q) + ": " + Fixed(moved_cm, 2) + " cm / " + Fixed(angle_deg, 3) + " deg";
       alignments_json += std::string(q ? ", " : "") + "{\"sequence\": " + std::to_string(q) +
                          ", \"translation_m\": " + FormatDouble(moved_cm / 100) +
-                         ", \"rotation_deg\": " + FormatDouble(angle_deg) + "}";
+                         ", \"rotation_deg\": " + FormatDouble(angle_deg) + ", \"scale\": " + FormatDouble(scale) + "}";
     }
     WriteFileAtomic(out_ / "alignments.csv", table.Csv());
     ctx_.Info(line);

@@ -147,6 +147,55 @@ struct SplineSampleError {
   }
 };
 
+// The LiDAR prior of a trajectory whose samples may be scaled
+// (SplineBAOptions::scale_trajectories): the sample's translation times
+// exp(s) (s: a 1-parameter block, the trajectory's log-scale), then as
+// SplineSampleError, without or with the alignment G (CreateAligned):
+//   e = sqrt_info * Log( (G * S_s(T_measured))^-1 * T_wb(t) ),  S_s(R, p) = (R, exp(s) p).
+struct ScaledSplineSampleError {
+  ScaledSplineSampleError(double u, const Pose& measured, const Eigen::Matrix<double, 6, 1>& sqrt_info)
+      : u(u), measured(measured), sqrt_info(sqrt_info) {}
+
+  template <typename T>
+  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* log_scale, T* residual) const {
+    return Residual(Scaled(log_scale).Inverse(), c0, c1, c2, c3, residual);
+  }
+  template <typename T>
+  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* g, const T* log_scale,
+                  T* residual) const {
+    return Residual((PoseT<T>::FromArray(g) * Scaled(log_scale)).Inverse(), c0, c1, c2, c3, residual);
+  }
+
+  static ceres::CostFunction* Create(double u, const Pose& measured, const Eigen::Matrix<double, 6, 1>& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<ScaledSplineSampleError, 6, 7, 7, 7, 7, 1>(
+        new ScaledSplineSampleError(u, measured, sqrt_info));
+  }
+  static ceres::CostFunction* CreateAligned(double u, const Pose& measured,
+                                            const Eigen::Matrix<double, 6, 1>& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<ScaledSplineSampleError, 6, 7, 7, 7, 7, 7, 1>(
+        new ScaledSplineSampleError(u, measured, sqrt_info));
+  }
+  double u;
+  Pose measured;
+  Eigen::Matrix<double, 6, 1> sqrt_info;
+
+ private:
+  template <typename T>
+  PoseT<T> Scaled(const T* log_scale) const {
+    PoseT<T> M;
+    M.q = measured.q.cast<T>();
+    M.t = measured.t.cast<T>() * exp(log_scale[0]);
+    return M;
+  }
+  template <typename T>
+  bool Residual(const PoseT<T>& world_to_measured, const T* c0, const T* c1, const T* c2, const T* c3,
+                T* residual) const {
+    const Eigen::Matrix<T, 6, 1> e = LogSE3T(world_to_measured * EvaluateSegment(c0, c1, c2, c3, u));
+    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
+    return true;
+  }
+};
+
 // Pull of a control pose to a fixed value (keeps segments without data
 // determined): e = sqrt_info * Log( T_ref^-1 * T_control ).
 struct ControlPoseError {
@@ -186,14 +235,15 @@ struct ControlSmoothnessError {
   Eigen::Matrix<double, 6, 1> sqrt_info;
 };
 
-// Gauge of the clock offsets: e = weight * sum_s d_s over the estimated
-// offsets (one 1-parameter block each). Linear, so its Jacobian is the
+// e = weight * sum_i x_i over 1-parameter blocks: the gauge of the clock
+// offsets (their sum held at 0), of the trajectories' log-scales, and with
+// one block a plain prior x / sigma. Linear, so its Jacobian is the
 // constant weight.
-class TimeOffsetSumError : public ceres::CostFunction {
+class ScalarSumError : public ceres::CostFunction {
  public:
-  TimeOffsetSumError(int num_offsets, double weight) : weight_(weight) {
+  ScalarSumError(int num_blocks, double weight) : weight_(weight) {
     set_num_residuals(1);
-    for (int i = 0; i < num_offsets; ++i) mutable_parameter_block_sizes()->push_back(1);
+    for (int i = 0; i < num_blocks; ++i) mutable_parameter_block_sizes()->push_back(1);
   }
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
     const int n = static_cast<int>(parameter_block_sizes().size());

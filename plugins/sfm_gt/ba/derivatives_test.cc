@@ -141,6 +141,17 @@ TEST(Derivatives, SplinePoseAndSampleErrors) {
     Blocks xa = xs;
     xa.push_back(PoseArray(ExpSE3(random_twist(degenerate ? 0.0 : 0.05))));
     EXPECT_LT(MaxRelativeJacobianError(*aligned, xa, {&se3, &se3, &se3, &se3, &se3}), 1e-6) << trial;
+    // The scaled forms: the sample's translation times exp(log-scale).
+    const Pose measured = spline.Evaluate(u) * ExpSE3(random_twist(0.01));
+    const std::vector<double> log_scale = {degenerate ? 0.0 : 0.01 * n(rng)};
+    std::unique_ptr<ceres::CostFunction> scaled(ScaledSplineSampleError::Create(u, measured, w));
+    Blocks xsc = xs;
+    xsc.push_back(log_scale);
+    EXPECT_LT(MaxRelativeJacobianError(*scaled, xsc, {&se3, &se3, &se3, &se3, nullptr}), 1e-6) << trial;
+    std::unique_ptr<ceres::CostFunction> scaled_aligned(ScaledSplineSampleError::CreateAligned(u, measured, w));
+    Blocks xsa = xa;
+    xsa.push_back(log_scale);
+    EXPECT_LT(MaxRelativeJacobianError(*scaled_aligned, xsa, {&se3, &se3, &se3, &se3, &se3, nullptr}), 1e-6) << trial;
     std::unique_ptr<ceres::CostFunction> smooth(ControlSmoothnessError::Create(w));
     const Blocks x3(x.begin(), x.begin() + 3);
     EXPECT_LT(MaxRelativeJacobianError(*smooth, x3, {&se3, &se3, &se3}), 1e-6) << trial;

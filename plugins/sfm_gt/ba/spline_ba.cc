@@ -29,6 +29,9 @@ std::string SplineBAOptions::CheckMessage() const {
   if (!positive(alignment_sigma_translation_m)) return "alignment_sigma_translation_m must be > 0";
   if (align_trajectories && !(trajectory_prior_sigma_rotation_rad > 0 && trajectory_prior_sigma_translation_m > 0))
     return "align_trajectories needs the trajectory prior (trajectory_prior_sigma_* > 0)";
+  if (scale_trajectories && !(trajectory_prior_sigma_rotation_rad > 0 && trajectory_prior_sigma_translation_m > 0))
+    return "scale_trajectories needs the trajectory prior (trajectory_prior_sigma_* > 0)";
+  if (!positive(trajectory_scale_sigma)) return "trajectory_scale_sigma must be > 0";
   if (!positive(cauchy_scale_px)) return "cauchy_scale_px must be > 0";
   if (max_iterations < 0) return "max_iterations must be >= 0";
   if (!(function_tolerance >= 0) || !(gradient_tolerance >= 0) || !(parameter_tolerance >= 0))
@@ -157,6 +160,7 @@ struct Parameters {
   std::vector<SE3Spline> splines;  // per trajectory (empty control: none)
   std::vector<std::vector<std::array<double, 7>>> controls;
   std::vector<std::array<double, 7>> alignments;  // per trajectory, world-from-LiDAR-world
+  std::vector<double> log_scales;                 // per trajectory, of its LiDAR samples
 };
 
 void CopyIn(const BAProblem& p, Parameters* x) {
@@ -218,6 +222,7 @@ void CopyOut(const Parameters& x, bool splines, BAProblem* p, SplineBAResult* re
   if (!splines) return;
   result->splines = x.splines;
   for (const auto& g : x.alignments) result->trajectory_alignments.push_back(PoseFromArray(g.data()));
+  for (double ls : x.log_scales) result->trajectory_scales.push_back(std::exp(ls));
   for (size_t t = 0; t < p->trajectories.size(); ++t) {
     SE3Spline& spline = result->splines[t];
     if (x.controls[t].empty()) continue;
@@ -335,6 +340,8 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
     std::array<double, 7> identity;
     PoseToArray(Pose(), identity.data());
     x.alignments.assign(x.controls.size(), identity);
+    x.log_scales.assign(x.controls.size(), 0.0);
+    std::vector<double*> log_scales;  // of the trajectories with images
     const auto wa = SqrtInformation(options.alignment_sigma_rotation_rad, options.alignment_sigma_translation_m);
     bool reference_taken = false;
     for (size_t t = 0; t < x.controls.size(); ++t) {
@@ -345,6 +352,7 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
       double* g = nullptr;
       if (options.align_trajectories && reference_taken) g = x.alignments[t].data();
       reference_taken = true;
+      double* ls = options.scale_trajectories && gauge_prior ? &x.log_scales[t] : nullptr;
       // Every control pose needs a residual to be in the problem; controls
       // no image touches are simply not adjusted (and written back as fitted).
       if (gauge_prior) {
@@ -352,7 +360,13 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
           int s;
           double u;
           x.splines[t].Locate(tr.times_s[i], &s, &u);
-          if (g)
+          if (g && ls)
+            ceres_problem.AddResidualBlock(ScaledSplineSampleError::CreateAligned(u, tr.T_world_body[i], wg), nullptr,
+                                           c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), g, ls);
+          else if (ls)
+            ceres_problem.AddResidualBlock(ScaledSplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr,
+                                           c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), ls);
+          else if (g)
             ceres_problem.AddResidualBlock(SplineSampleError::CreateAligned(u, tr.T_world_body[i], wg), nullptr,
                                            c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), g);
           else
@@ -365,6 +379,11 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
           ceres_problem.SetManifold(g, &se3);
           ++result.num_prior_residuals;
         }
+        if (ls) {
+          ceres_problem.AddResidualBlock(new ScalarSumError(1, 1.0 / options.trajectory_scale_sigma), nullptr, ls);
+          log_scales.push_back(ls);
+          ++result.num_prior_residuals;
+        }
       }
       for (auto& ck : c)
         if (ceres_problem.HasParameterBlock(ck.data())) {
@@ -375,6 +394,10 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
           }
         }
     }
+    // The map keeps the LiDAR's mean scale (as the clock offsets' gauge).
+    if (log_scales.size() > 1)
+      ceres_problem.AddResidualBlock(new ScalarSumError(static_cast<int>(log_scales.size()), 1e5), nullptr,
+                                     log_scales);
   }
 
   // Manifolds and what is held constant.
@@ -436,7 +459,7 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
       if (sensor_in_prior[s]) offsets.push_back(&x.time_offsets[s]);
     // 1e-5 s per unit of the sum: stiff against the offsets' own information.
     if (offsets.size() >= 2)
-      ceres_problem.AddResidualBlock(new TimeOffsetSumError(static_cast<int>(offsets.size()), 1e5), nullptr, offsets);
+      ceres_problem.AddResidualBlock(new ScalarSumError(static_cast<int>(offsets.size()), 1e5), nullptr, offsets);
   }
   if (!options.refine_points)
     for (auto& p : x.points)

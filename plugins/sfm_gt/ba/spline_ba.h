@@ -134,6 +134,16 @@ struct SplineBAOptions {
   bool align_trajectories = false;
   double alignment_sigma_rotation_rad = 0.05;    // ~3 deg
   double alignment_sigma_translation_m = 1.0;
+  // Let each trajectory's LiDAR samples be scaled by its own factor exp(s_t)
+  // (about the LiDAR world origin) before the trajectory prior compares
+  // them with its spline, the mean of the log-factors held at 0. The
+  // images (which all sequences share) then set the sequences' relative
+  // scales, and the map keeps the LiDAR's mean scale: per-sequence scale
+  // errors of the LiDAR half (a wheel radius ~1 % off leaking through the
+  // odometry edges) stop bending the map. Needs the trajectory prior. A weak
+  // prior (sigma below) keeps the scale of an unconnected sequence at 1.
+  bool scale_trajectories = false;
+  double trajectory_scale_sigma = 0.01;  // of each log-factor (1 %)
   // Gauge without spline priors (plain BA): the pose of the first image with
   // an observation is held fixed and, for the scale, the largest coordinate of
   // the translation of the image farthest from it (as COLMAP fixes one
@@ -186,6 +196,9 @@ struct SplineBAResult {
   // With align_trajectories: the estimated alignment G_t of each trajectory
   // (world-from-LiDAR-world; identity for the reference and unused ones).
   std::vector<Pose> trajectory_alignments;
+  // With scale_trajectories: the estimated scale exp(s_t) of each
+  // trajectory's LiDAR samples (1 for unused ones).
+  std::vector<double> trajectory_scales;
 };
 
 // Adjusts `problem` in place: images' T_world_camera, sensors' intrinsics and
