@@ -96,6 +96,16 @@ struct SplinePoseError {
   Eigen::Matrix<double, 6, 1> sqrt_info;
 };
 
+// The residual of both sample errors below: sqrt_info * Log( world_to_measured
+// * T_wb(t) ), T_wb from the segment's 4 control poses at fraction u.
+template <typename T>
+bool SplineSampleResidual(const PoseT<T>& world_to_measured, double u, const Eigen::Matrix<double, 6, 1>& sqrt_info,
+                          const T* c0, const T* c1, const T* c2, const T* c3, T* residual) {
+  const Eigen::Matrix<T, 6, 1> e = LogSE3T(world_to_measured * EvaluateSegment(c0, c1, c2, c3, u));
+  for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
+  return true;
+}
+
 // Spline vs a measured body pose (fitting, and the LiDAR trajectory prior):
 //   e = sqrt_info * Log( T_measured^-1 * T_wb(t) ),
 // or, for a trajectory that may move rigidly as a whole
@@ -108,11 +118,12 @@ struct SplineSampleError {
 
   template <typename T>
   bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, T* residual) const {
-    return Residual(MeasuredInverse<T>(), c0, c1, c2, c3, residual);
+    return SplineSampleResidual(PoseT<T>::Cast(measured_inverse), u, sqrt_info, c0, c1, c2, c3, residual);
   }
   template <typename T>
   bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* g, T* residual) const {
-    return Residual(MeasuredInverse<T>() * PoseT<T>::FromArray(g).Inverse(), c0, c1, c2, c3, residual);
+    return SplineSampleResidual(PoseT<T>::Cast(measured_inverse) * PoseT<T>::FromArray(g).Inverse(), u, sqrt_info,
+                                c0, c1, c2, c3, residual);
   }
 
   static ceres::CostFunction* Create(double u, const Pose& measured,
@@ -128,23 +139,6 @@ struct SplineSampleError {
   double u;
   Pose measured_inverse;
   Eigen::Matrix<double, 6, 1> sqrt_info;
-
- private:
-  template <typename T>
-  PoseT<T> MeasuredInverse() const {
-    PoseT<T> M;
-    M.q = measured_inverse.q.cast<T>();
-    M.t = measured_inverse.t.cast<T>();
-    return M;
-  }
-  // `world_to_measured`: T_measured^-1, or (G T_measured)^-1.
-  template <typename T>
-  bool Residual(const PoseT<T>& world_to_measured, const T* c0, const T* c1, const T* c2, const T* c3,
-                T* residual) const {
-    const Eigen::Matrix<T, 6, 1> e = LogSE3T(world_to_measured * EvaluateSegment(c0, c1, c2, c3, u));
-    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
-    return true;
-  }
 };
 
 // The LiDAR prior of a trajectory whose samples may be scaled
@@ -158,12 +152,13 @@ struct ScaledSplineSampleError {
 
   template <typename T>
   bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* log_scale, T* residual) const {
-    return Residual(Scaled(log_scale).Inverse(), c0, c1, c2, c3, residual);
+    return SplineSampleResidual(Scaled(log_scale).Inverse(), u, sqrt_info, c0, c1, c2, c3, residual);
   }
   template <typename T>
   bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* g, const T* log_scale,
                   T* residual) const {
-    return Residual((PoseT<T>::FromArray(g) * Scaled(log_scale)).Inverse(), c0, c1, c2, c3, residual);
+    return SplineSampleResidual((PoseT<T>::FromArray(g) * Scaled(log_scale)).Inverse(), u, sqrt_info, c0, c1, c2,
+                                c3, residual);
   }
 
   static ceres::CostFunction* Create(double u, const Pose& measured, const Eigen::Matrix<double, 6, 1>& sqrt_info) {
@@ -182,17 +177,9 @@ struct ScaledSplineSampleError {
  private:
   template <typename T>
   PoseT<T> Scaled(const T* log_scale) const {
-    PoseT<T> M;
-    M.q = measured.q.cast<T>();
-    M.t = measured.t.cast<T>() * exp(log_scale[0]);
+    PoseT<T> M = PoseT<T>::Cast(measured);
+    M.t *= exp(log_scale[0]);
     return M;
-  }
-  template <typename T>
-  bool Residual(const PoseT<T>& world_to_measured, const T* c0, const T* c1, const T* c2, const T* c3,
-                T* residual) const {
-    const Eigen::Matrix<T, 6, 1> e = LogSE3T(world_to_measured * EvaluateSegment(c0, c1, c2, c3, u));
-    for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
-    return true;
   }
 };
 
@@ -203,10 +190,7 @@ struct ControlPoseError {
       : ref_inverse(ref.Inverse()), sqrt_info(sqrt_info) {}
   template <typename T>
   bool operator()(const T* c, T* residual) const {
-    PoseT<T> M;
-    M.q = ref_inverse.q.cast<T>();
-    M.t = ref_inverse.t.cast<T>();
-    const Eigen::Matrix<T, 6, 1> e = LogSE3T(M * PoseT<T>::FromArray(c));
+    const Eigen::Matrix<T, 6, 1> e = LogSE3T(PoseT<T>::Cast(ref_inverse) * PoseT<T>::FromArray(c));
     for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
     return true;
   }

@@ -42,6 +42,13 @@ struct PoseT {
     r.t = Eigen::Matrix<T, 3, 1>(p[4], p[5], p[6]);
     return r;
   }
+  // A fixed (double) pose as a constant of the autodiff scalar type.
+  static PoseT Cast(const Pose& p) {
+    PoseT r;
+    r.q = p.q.cast<T>();
+    r.t = p.t.cast<T>();
+    return r;
+  }
   PoseT operator*(const PoseT& o) const {
     PoseT r;
     r.q = q * o.q;
