@@ -51,6 +51,9 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
         "A sequential registration farther than this from its guess failed (m)").Min(0);
   s.Add("registration", &O::registration, "Registration back-end (stage id of a component)");
   s.Add("registration_params", &O::registration_params, "key=value parameters of the back-end");
+  s.Add("refine_correspondence_distance", &O::refine_correspondence_distance,
+        "Final pass of accepted sequential and precise loop registrations with the back-end's "
+        "max_correspondence_distance set to this (m; 0: none)").Range(0, 100);
   s.Add("keyframe_distance", &O::keyframe_distance, "Travel between keyframes (m)").Range(0, 100);
   s.Add("keyframe_angle", &O::keyframe_angle, "Rotation between keyframes (deg)").Range(0, 360);
   s.Add("min_overlap", &O::min_overlap, "Inlier fraction needed by a sequential edge").Range(0, 1);
@@ -157,7 +160,7 @@ Matrix6d DiagonalInformation(double sigma_t, double sigma_r_rad) {
 class Slam {
  public:
   Slam(const PoseGraphSlamOptions& o, RunContext& ctx)
-      : o_(o), ctx_(ctx), backend_(MakeBackend(o, ctx)) {
+      : o_(o), ctx_(ctx), backend_(MakeBackend(o, ctx, 0)), refine_backend_(MakeBackend(o, ctx, o.refine_correspondence_distance)) {
     if (o.motion_prior == "wheel" && o.dataset.empty())
       throw ParamError("slam/pose_graph: dataset is required with motion_prior wheel (the wheel records)");
     if (o.motion_prior == "wheel")
@@ -167,14 +170,29 @@ class Slam {
   void Run();
 
  private:
-  static RegistrationBackend MakeBackend(const PoseGraphSlamOptions& o, RunContext& ctx) {
+  // The back-end with registration_params and, when max_correspondence > 0,
+  // max_correspondence_distance overridden (the key every registration
+  // back-end declares, plugins/registration/README.md).
+  static RegistrationBackend MakeBackend(const PoseGraphSlamOptions& o, RunContext& ctx, double max_correspondence) {
     std::vector<std::pair<std::string, std::string>> params;
     for (const auto& kv : o.registration_params) {
       const size_t eq = kv.find('=');
+      if (max_correspondence > 0 && kv.substr(0, eq) == "max_correspondence_distance") continue;
       params.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+    }
+    if (max_correspondence > 0) {
+      std::ostringstream v;
+      v.precision(17);
+      v << max_correspondence;
+      params.emplace_back("max_correspondence_distance", v.str());
     }
     return RegistrationBackend::Create(ctx, o.registration, params);
   }
+  // The final pass of refine_correspondence_distance from an accepted
+  // registration `first` of source -> target: its pose and information when
+  // it converged within that distance of `first`, else `first` unchanged.
+  // `first`'s overlap is kept (acceptance is decided on the first pass).
+  RegistrationResult Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target);
   void SelectKeyframes(const std::vector<kapture::DataRecord>& scans, const fs::path& scans_root);
   void AddSequentialEdges();
   int AddLoopEdges();
@@ -202,6 +220,8 @@ class Slam {
   RunContext& ctx_;
   std::unique_ptr<WheelOdometry> odometry_;  // null with motion_prior constant_velocity
   RegistrationBackend backend_;
+  RegistrationBackend refine_backend_;  // backend_ with the refine gate (unused when it is 0)
+  int refinements_ = 0, refinements_rejected_ = 0;
   std::vector<Keyframe> keyframes_;  // sequences in time order, each in time order
   PoseGraph graph_;
   std::set<std::pair<int, int>> accepted_;  // loop edges added
@@ -308,6 +328,18 @@ Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) {
   return out;
 }
 
+RegistrationResult Slam::Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target) {
+  if (o_.refine_correspondence_distance <= 0) return first;
+  RegistrationResult fine = refine_backend_.Align(source, target, first.T_target_source, ctx_.threads());
+  if (!fine.converged || (fine.T_target_source.t - first.T_target_source.t).norm() > o_.refine_correspondence_distance) {
+    ++refinements_rejected_;
+    return first;
+  }
+  ++refinements_;
+  fine.inlier_fraction = first.inlier_fraction;
+  return fine;
+}
+
 void Slam::AddSequentialEdges() {
   const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation, 5 * o_.sigma_rotation * M_PI / 180);
   for (size_t i = 1; i < keyframes_.size(); ++i) {
@@ -346,6 +378,7 @@ void Slam::AddSequentialEdges() {
       try_guesses(turned);
     }
     guess = ok ? guess : guesses[0];
+    if (ok) r = Refine(r, b.cloud, a.cloud);
     PoseGraphEdge e;
     e.from = a.id;
     e.to = b.id;
@@ -408,7 +441,7 @@ std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyfram
       continue;
     }
     ctx_.Debug(name + " fine: overlap " + std::to_string(fine.inlier_fraction));
-    out.push_back(fine);
+    out.push_back(Refine(fine, b.cloud, a.cloud));
   }
   return out;
 }
@@ -805,7 +838,8 @@ void Slam::WriteOutputs(const std::vector<kapture::DataRecord>& scans, const Pos
     << ",\n  \"join_attempts\": " << join_attempts_ << ",\n  \"join_candidates_tested\": " << join_tests_
     << ",\n  \"join_rejected_loops\": " << join_rejected_loops_ << ",\n  \"initial_cost\": " << summary.initial_cost
     << ",\n  \"final_cost\": " << summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
-    << ",\n  \"information_fallbacks\": " << information_fallbacks_ << ",\n  \"map_points\": " << map.size()
+    << ",\n  \"information_fallbacks\": " << information_fallbacks_ << ",\n  \"refinements\": " << refinements_
+    << ",\n  \"refinements_rejected\": " << refinements_rejected_ << ",\n  \"map_points\": " << map.size()
     << ",\n  \"map_plane_residual\": {\"k\": " << o_.map_residual_k << ", \"radius\": " << o_.map_residual_radius
     << ", \"points\": " << crisp.points << ", \"skipped\": " << crisp.skipped << ", \"mean\": " << crisp.mean
     << ", \"median\": " << crisp.median << ", \"rmse\": " << crisp.rmse << ", \"p90\": " << crisp.p90 << "}"

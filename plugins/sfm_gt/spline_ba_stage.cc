@@ -316,6 +316,7 @@ void OuterLoop::Run() {
     ba.alignment_sigma_translation_m = o_.alignment_sigma_translation_m;
     ba.scale_trajectories = o_.scale_sequences && o_.use_spline_prior &&
                             o_.trajectory_prior_sigma_rotation_deg > 0 && o_.trajectory_prior_sigma_translation_m > 0;
+    ba.nonholonomic_sigma_mps = o_.use_spline_prior ? o_.nonholonomic_sigma_mps : 0;
     ba.refine_principal_point = o_.refine_principal_point;
     ba.fix_aspect_ratio = o_.fix_aspect_ratio;
     ba.cauchy_scale_px = o_.cauchy_scale_px;

@@ -95,6 +95,11 @@ struct SplineBAStageOptions {
   // 0): the images set the sequences' relative scales (ba/spline_ba.h
   // scale_trajectories; README "Scale").
   bool scale_sequences = false;
+  // Wheeled-base kinematics: std of the spline's sideways body velocity
+  // (m/s; 0: off). For a differential-drive base whose rig origin is the
+  // wheel axle's centre, x forward (ba/spline_ba.h nonholonomic_sigma_mps;
+  // README "Camera rotations").
+  double nonholonomic_sigma_mps = 0;
   bool refine_principal_point = true;   // With calibrate_intrinsics: also the principal point.
   bool fix_aspect_ratio = true;         // With calibrate_intrinsics: keep fy / fx (fx, fy move together).
   double cauchy_scale_px = 2.0;         // Cauchy loss scale of reprojection residuals.
@@ -133,6 +138,9 @@ struct SplineBAStageOptions {
           "prior of each spline to its initial (LiDAR) poses, translation sigma (m; 0: off)").Min(0);
     s.Add("scale_sequences", &O::scale_sequences,
           "scale each sequence's LiDAR poses too, their mean log-scale held at 0 (the images set relative scales)");
+    s.Add("nonholonomic_sigma_mps", &O::nonholonomic_sigma_mps,
+          "wheeled base, rig origin at the wheel axle centre, x forward: std of the spline's sideways velocity "
+          "(m/s; 0: off)").Min(0);
     s.Add("align_trajectories", &O::align_trajectories,
           "estimate a rigid correction of each sequence's LiDAR poses but the first (the images place the sequences)");
     s.Add("alignment_sigma_rotation_deg", &O::alignment_sigma_rotation_deg,

@@ -183,6 +183,31 @@ struct ScaledSplineSampleError {
   }
 };
 
+// Wheeled-base kinematics (SplineBAOptions::nonholonomic_sigma_mps): the
+// body does not slip sideways. Its velocity in the middle of a segment, from
+// the chord T_wb(1/4) -> T_wb(3/4) seen in the body frame at 1/2, has no
+// lateral part:
+//   v = R_wb(1/2)^T (p(3/4) - p(1/4)) / (dt / 2),  e = v_y / sigma.
+// On an arc of constant curvature the chord is parallel to the velocity at
+// its middle, so a base driving arcs leaves e = 0 exactly. (Vertical motion
+// is left free: floors are not flat to a millimetre, bases pitch.)
+struct NonholonomicError {
+  NonholonomicError(double dt_s, double sigma_mps) : dt_s(dt_s), sigma_mps(sigma_mps) {}
+  template <typename T>
+  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, T* residual) const {
+    const PoseT<T> before = EvaluateSegment(c0, c1, c2, c3, 0.25);
+    const PoseT<T> middle = EvaluateSegment(c0, c1, c2, c3, 0.5);
+    const PoseT<T> after = EvaluateSegment(c0, c1, c2, c3, 0.75);
+    const Eigen::Matrix<T, 3, 1> v = middle.q.conjugate() * (after.t - before.t) / T(0.5 * dt_s);
+    residual[0] = v.y() / T(sigma_mps);
+    return true;
+  }
+  static ceres::CostFunction* Create(double dt_s, double sigma_mps) {
+    return new ceres::AutoDiffCostFunction<NonholonomicError, 1, 7, 7, 7, 7>(new NonholonomicError(dt_s, sigma_mps));
+  }
+  double dt_s, sigma_mps;
+};
+
 // Pull of a control pose to a fixed value (keeps segments without data
 // determined): e = sqrt_info * Log( T_ref^-1 * T_control ).
 struct ControlPoseError {

@@ -155,6 +155,11 @@ TEST(Derivatives, SplinePoseAndSampleErrors) {
     std::unique_ptr<ceres::CostFunction> smooth(ControlSmoothnessError::Create(w));
     const Blocks x3(x.begin(), x.begin() + 3);
     EXPECT_LT(MaxRelativeJacobianError(*smooth, x3, {&se3, &se3, &se3}), 1e-6) << trial;
+    // Wheeled-base kinematics (non-degenerate controls: a moving segment).
+    if (!degenerate) {
+      std::unique_ptr<ceres::CostFunction> kinematic(NonholonomicError::Create(0.3, 0.003));
+      EXPECT_LT(MaxRelativeJacobianError(*kinematic, xs, {&se3, &se3, &se3, &se3}), 1e-6) << trial;
+    }
   }
 }
 

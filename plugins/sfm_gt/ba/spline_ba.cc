@@ -32,6 +32,8 @@ std::string SplineBAOptions::CheckMessage() const {
   if (scale_trajectories && !(trajectory_prior_sigma_rotation_rad > 0 && trajectory_prior_sigma_translation_m > 0))
     return "scale_trajectories needs the trajectory prior (trajectory_prior_sigma_* > 0)";
   if (!positive(trajectory_scale_sigma)) return "trajectory_scale_sigma must be > 0";
+  if (!(nonholonomic_sigma_mps >= 0) || !std::isfinite(nonholonomic_sigma_mps))
+    return "nonholonomic_sigma_mps must be >= 0 (0: off)";
   if (!positive(cauchy_scale_px)) return "cauchy_scale_px must be > 0";
   if (max_iterations < 0) return "max_iterations must be >= 0";
   if (!(function_tolerance >= 0) || !(gradient_tolerance >= 0) || !(parameter_tolerance >= 0))
@@ -394,6 +396,20 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
           }
         }
     }
+    // Wheeled-base kinematics, once per segment whose controls are adjusted.
+    if (options.nonholonomic_sigma_mps > 0)
+      for (size_t t = 0; t < x.controls.size(); ++t) {
+        auto& c = x.controls[t];
+        for (int s = 0; s + 3 < static_cast<int>(c.size()); ++s) {
+          bool adjusted = true;
+          for (int j = 0; j < 4; ++j) adjusted = adjusted && ceres_problem.HasParameterBlock(c[s + j].data());
+          if (!adjusted) continue;
+          ceres_problem.AddResidualBlock(
+              NonholonomicError::Create(x.splines[t].dt, options.nonholonomic_sigma_mps), nullptr, c[s].data(),
+              c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
+          ++result.num_prior_residuals;
+        }
+      }
     // The map keeps the LiDAR's mean scale (as the clock offsets' gauge).
     if (log_scales.size() > 1)
       ceres_problem.AddResidualBlock(new ScalarSumError(static_cast<int>(log_scales.size()), 1e5), nullptr,

@@ -144,6 +144,16 @@ struct SplineBAOptions {
   // prior (sigma below) keeps the scale of an unconnected sequence at 1.
   bool scale_trajectories = false;
   double trajectory_scale_sigma = 0.01;  // of each log-factor (1 %)
+  // Wheeled-base kinematics: in the middle of every spline segment the body
+  // moves along its x axis, i.e. its body-frame velocity has no lateral (y)
+  // part, within this std (m/s; 0: off). Needs the body
+  // origin at the centre of the wheel axle, x forward (a differential-drive
+  // base such as the simulator's). It holds each trajectory's heading to its
+  // direction of travel, which the images measure to a few millimetres;
+  // without it only the loose LiDAR rotation prior holds the common rotation
+  // of all cameras against the body, and a LiDAR heading bias of a few
+  // hundredths of a degree goes into every camera rotation (README).
+  double nonholonomic_sigma_mps = 0;
   // Gauge without spline priors (plain BA): the pose of the first image with
   // an observation is held fixed and, for the scale, the largest coordinate of
   // the translation of the image farthest from it (as COLMAP fixes one

@@ -220,6 +220,30 @@ TEST(SplineBA, ScalesSequencesWhoseLiDARScalesDisagree) {
   EXPECT_LT(run.final.similarity_position_rms_m, kept.final.similarity_position_rms_m);
 }
 
+// The LiDAR's headings biased by 0.2 deg against its own direction of travel
+// (what a heading bias of the LiDAR half looks like to the BA): the loose
+// rotation prior lets part of it into the common rotation of all cameras
+// against the body; the wheeled-base kinematics (the synthetic platform
+// drives along its x axis) hold the heading to the travel the images see.
+TEST(SplineBA, WheeledBaseKinematicsHoldTheHeadingAgainstALiDARBias) {
+  SyntheticScene scene = Scene();
+  const Eigen::Quaterniond bias(Eigen::AngleAxisd(0.2 * M_PI / 180, Eigen::Vector3d::UnitZ()));
+  for (auto& tr : scene.initial.trajectories)
+    for (Pose& T : tr.T_world_body) T.q = T.q * bias;
+  SplineBAOptions plain = Options();
+  plain.trajectory_prior_sigma_rotation_rad = 0.2 * M_PI / 180;  // tighter than the stage's: a clear pull
+  const Outcome biased = Solve("LiDAR heading bias", scene, plain);
+  SplineBAOptions kinematic = plain;
+  kinematic.nonholonomic_sigma_mps = 0.003;
+  const Outcome held = Solve("+ kinematics", scene, kinematic);
+  ASSERT_TRUE(held.result.usable) << held.result.message;
+  std::printf("  camera rotations max %.4f deg (without the kinematics %.4f deg)\n",
+              held.final.extrinsic_rotation_max_deg, biased.final.extrinsic_rotation_max_deg);
+  EXPECT_GT(biased.final.extrinsic_rotation_max_deg, 0.05);
+  EXPECT_LT(held.final.extrinsic_rotation_max_deg, 0.5 * biased.final.extrinsic_rotation_max_deg);
+  EXPECT_LT(held.final.aligned_position_rms_m, biased.final.aligned_position_rms_m + 0.001);
+}
+
 // fix_aspect_ratio (the default) moves fx and fy of the two-focal models
 // together: fy / fx stays at its start value while the focal lengths are
 // still calibrated; without it both move on their own.
@@ -270,6 +294,9 @@ TEST(SplineBA, BadOptionsAreRejectedWithAMessage) {
   o.align_trajectories = false;
   o.scale_trajectories = true;
   EXPECT_NE(o.CheckMessage().find("scale_trajectories"), std::string::npos);
+  o = SplineBAOptions();
+  o.nonholonomic_sigma_mps = -0.001;
+  EXPECT_NE(o.CheckMessage().find("nonholonomic_sigma_mps"), std::string::npos);
   o = SplineBAOptions();
   o.linear_solver = "dense_qr";
   EXPECT_NE(o.CheckMessage().find("linear_solver"), std::string::npos);
