@@ -160,7 +160,10 @@ Matrix6d DiagonalInformation(double sigma_t, double sigma_r_rad) {
 class Slam {
  public:
   Slam(const PoseGraphSlamOptions& o, RunContext& ctx)
-      : o_(o), ctx_(ctx), backend_(MakeBackend(o, ctx, 0)), refine_backend_(MakeBackend(o, ctx, o.refine_correspondence_distance)) {
+      : o_(o),
+        ctx_(ctx),
+        backend_(MakeBackend(o, ctx, 0)),
+        refine_backend_(MakeBackend(o, ctx, o.refine_correspondence_distance)) {
     if (o.motion_prior == "wheel" && o.dataset.empty())
       throw ParamError("slam/pose_graph: dataset is required with motion_prior wheel (the wheel records)");
     if (o.motion_prior == "wheel")
@@ -331,7 +334,8 @@ Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) {
 RegistrationResult Slam::Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target) {
   if (o_.refine_correspondence_distance <= 0) return first;
   RegistrationResult fine = refine_backend_.Align(source, target, first.T_target_source, ctx_.threads());
-  if (!fine.converged || (fine.T_target_source.t - first.T_target_source.t).norm() > o_.refine_correspondence_distance) {
+  const double moved = (fine.T_target_source.t - first.T_target_source.t).norm();
+  if (!fine.converged || moved > o_.refine_correspondence_distance) {
     ++refinements_rejected_;
     return first;
   }
