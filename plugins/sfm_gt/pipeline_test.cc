@@ -69,9 +69,11 @@ TEST(SfmGtPipeline, TinyRecordingRefinedFromPerturbedCalibration) {
   EXPECT_LT(reproj, 1.0);
   // Refined poses closer to the truth than the LiDAR poses (with the
   // perturbed extrinsics), focal lengths and camera rotations recovered.
-  // Measured (session 7 defaults: 0.3 s knots, 3 mm image-to-spline, clock
-  // offsets, unbiased SIFT): positions 1.35 -> 0.44 cm, rotations 1.47 ->
-  // 0.069 deg, focal 3 -> 0.096 %, camera rotations 1.5 -> 0.113 deg.
+  // Measured (session 8 defaults: 0.3 s knots, 3 mm image-to-spline, clock
+  // offsets, wheeled-base kinematics, LiDAR final registration pass):
+  // positions 1.34 -> 0.43 cm, rotations 1.47 -> 0.068 deg, focal 3 ->
+  // 0.082 %, camera rotations 1.5 -> 0.243 deg (a common roll that this one
+  // straight sequence leaves to the LiDAR; 0.113 deg with the session-7 LiDAR).
   EXPECT_LT(refined.at("position RMS (cm)"), 0.6 * start.at("position RMS (cm)"));
   EXPECT_LT(refined.at("rotation RMS (deg)"), 0.2 * start.at("rotation RMS (deg)"));
   EXPECT_NEAR(start.at("focal error RMS (%)"), 3.0, 1e-6);

@@ -98,7 +98,7 @@ struct SplineBAStageOptions {
   // Wheeled-base kinematics: std of the spline's sideways body velocity
   // (m/s; 0: off). For a differential-drive base whose rig origin is the
   // wheel axle's centre, x forward (ba/spline_ba.h nonholonomic_sigma_mps;
-  // README "Camera rotations").
+  // README "Session 8").
   double nonholonomic_sigma_mps = 0;
   bool refine_principal_point = true;   // With calibrate_intrinsics: also the principal point.
   bool fix_aspect_ratio = true;         // With calibrate_intrinsics: keep fy / fx (fx, fy move together).

@@ -152,7 +152,7 @@ struct SplineBAOptions {
   // direction of travel, which the images measure to a few millimetres;
   // without it only the loose LiDAR rotation prior holds the common rotation
   // of all cameras against the body, and a LiDAR heading bias of a few
-  // hundredths of a degree goes into every camera rotation (README).
+  // hundredths of a degree goes into every camera rotation (plugins/sfm_gt/README.md "Session 8").
   double nonholonomic_sigma_mps = 0;
   // Gauge without spline priors (plain BA): the pose of the first image with
   // an observation is held fixed and, for the scale, the largest coordinate of
