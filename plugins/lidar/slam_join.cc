@@ -255,6 +255,9 @@ bool Slam::TryJoin(int A, int B, int round) {
   if (at.has_rival)
     log << "; rival: conflict " << Percent(at.rival.evidence.Conflict()) << ", " << at.rival.evidence.Agreeing()
         << " cells";
+  log << "; frames (conflict, agreeing, support):";
+  for (const auto& h : hypotheses)
+    log << " (" << Percent(h.evidence.Conflict()) << ", " << h.evidence.Agreeing() << ", " << h.support << ")";
   if (at.predicted_tested > 0) log << "; predicted loops " << at.predicted_found << " of " << at.predicted_tested;
   log << ": " << (d.status == JoinDecision::Status::kJoined ? "joined" : "refused, " + d.reason);
   hooks_.info(log.str());
