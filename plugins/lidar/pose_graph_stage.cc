@@ -174,9 +174,12 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
   std::vector<ScanStamp> stamps;
   for (const auto& r : scans) stamps.push_back({r.timestamp, SequenceOfScan(r.path)});
+  const auto keyframes_start = std::chrono::steady_clock::now();
   slam.SelectKeyframes(stamps, [&](size_t i) {
     return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt"));
   });
+  slam.AddStepTime("keyframes",
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - keyframes_start).count());
   ctx.Info("pose_graph: " + std::to_string(slam.keyframes().size()) + " keyframes of " +
            std::to_string(scans.size()) + " scans");
   slam.Run();
@@ -188,10 +191,9 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   }
   if (inconsistent || (separate && o.unjoined == "error")) throw Error("slam/pose_graph: " + UnjoinedMessage(slam));
   if (separate) ctx.Info("pose_graph: " + UnjoinedMessage(slam));
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   // Sensors, rigs and camera records: the recording, else the scans' own.
   const kapture::Kapture dataset(recording.empty() ? scans_root : recording);
-  ctx.Info("pose_graph: " + WriteSlamOutputs(slam, o, scans, dataset, ctx.output_dir(), seconds));
+  ctx.Info("pose_graph: " + WriteSlamOutputs(slam, o, scans, dataset, ctx.output_dir(), start));
 }
 
 }  // namespace locforge::lidar
