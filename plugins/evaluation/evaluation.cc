@@ -203,7 +203,7 @@ plot::Figure RecallFigure(std::vector<plot::Series> curves, const std::string& t
                           double max_position_m, double angle_per_m) {
   plot::Figure f;
   f.title = title;
-  f.x_label = "position threshold (m), angle = " + Num(angle_per_m, 0) + " x m (deg)";
+  f.x_label = "position threshold (m); rotation threshold " + Num(angle_per_m, 0) + "\xC2\xB0 per metre";
   f.y_label = "localized queries (%)";
   f.series = std::move(curves);
   f.x_min = 0;

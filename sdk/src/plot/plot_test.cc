@@ -16,6 +16,7 @@
 #include <memory>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "font.h"
 #include "layout.h"
@@ -597,6 +598,25 @@ TEST(Plot, SameFigureSameBytesDifferentFiguresDifferentIds) {
   const std::set<std::string> a = id_set(svg), b = id_set(RenderSvg(TwoSeries()));
   EXPECT_FALSE(a.empty());
   for (const std::string& id : b) EXPECT_EQ(a.count(id), 0u) << id;
+}
+
+TEST(Plot, RendersTheSameFromSeveralThreadsAtOnce) {
+  // Stages with threads may draw concurrently: one font face serves them all.
+  const std::vector<uint8_t> png = RenderPng(Map());
+  const std::string svg = RenderSvg(Map());
+  std::vector<std::vector<uint8_t>> pngs(4);
+  std::vector<std::string> svgs(4);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      pngs[t] = RenderPng(Map());
+      svgs[t] = RenderSvg(Map());
+    });
+  for (std::thread& t : threads) t.join();
+  for (int t = 0; t < 4; ++t) {
+    EXPECT_EQ(pngs[t], png) << t;
+    EXPECT_EQ(svgs[t], svg) << t;
+  }
 }
 
 // Runs in two roles: the test spawns this executable again with
