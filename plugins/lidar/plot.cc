@@ -21,9 +21,8 @@ plot::Figure TopDownFigure(const std::vector<PlotSequence>& before, const std::v
   for (size_t s = 0; s < after.size(); ++s) {
     const std::string color = plot::PaletteColor(s);
     if (s < before.size()) {
-      // Lighter and thinner than the result it was optimised into.
+      // Lighter than the result it was optimised into.
       plot::Series b{"", {}, {}, color + "99", false, true};
-      b.width = 1.5;
       for (const auto& p : before[s].xy) {
         b.x.push_back(p.x());
         b.y.push_back(p.y());
@@ -40,10 +39,12 @@ plot::Figure TopDownFigure(const std::vector<PlotSequence>& before, const std::v
   }
   for (plot::Series& a : solid) f.series.push_back(std::move(a));
   if (!before.empty()) f.series.push_back({"before optimisation", {}, {}, "#808080", false, true});
+  const std::string loop_color = "#00000059";  // grey where one edge, darker where many
   for (const auto& [from, to] : loops) {
     if (!at.count(from) || !at.count(to)) continue;
-    f.segments.push_back({at[from].x(), at[from].y(), at[to].x(), at[to].y(), "#00000059", "loop closures"});
+    f.segments.push_back({at[from].x(), at[from].y(), at[to].x(), at[to].y(), loop_color});
   }
+  if (!f.segments.empty()) f.series.push_back({"loop closures", {}, {}, loop_color});
   return f;
 }
 

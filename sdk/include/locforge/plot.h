@@ -11,9 +11,8 @@
 //   plot::WriteFigure(f, dir + "/curve.png");   // or .svg
 //
 // What the figure shows: a light grid at "nice" ticks (1, 2, 5 x 10^k), tick
-// labels, axis labels, a title, and a legend of the labelled series and
-// segments, placed in the corner or edge of the plot area that hides the
-// least data. Output is deterministic: the same figure gives the same bytes
+// labels, axis labels, a title, and a legend of the labelled series, placed
+// in the corner or edge of the plot area that hides the least data. Output is deterministic: the same figure gives the same bytes
 // (on the same Cairo, libpng and font), so caches and tests stay stable.
 #ifndef LOCFORGE_PLOT_H_
 #define LOCFORGE_PLOT_H_
@@ -26,9 +25,6 @@
 
 namespace locforge::plot {
 
-// Marker shapes; shapes tell series apart in greyscale print too.
-enum class Marker { kCircle, kSquare, kTriangle, kDiamond, kCross };
-
 // Colours are "#rrggbb" or "#rrggbbaa" (aa = opacity, ff opaque); anything
 // else makes the renderers throw locforge::Error naming the series.
 struct Series {
@@ -36,21 +32,19 @@ struct Series {
   std::vector<double> x;   // same length as y; non-finite points break the line
   std::vector<double> y;
   std::string color;       // empty = PaletteColor(index of the series)
-  bool markers = false;    // a marker at every point
+  bool markers = false;    // a dot at every point
   bool dashed = false;     // e.g. a trajectory before optimisation
   bool line = true;        // false: markers only (a scatter)
-  Marker marker = Marker::kCircle;
-  double width = 2;        // line width in pixels
 };
-// A series with a label and no points is a legend entry only (e.g. one grey
-// dashed "before optimisation" entry for several dashed series).
+// A series with a label and no points is a legend entry only: one grey dashed
+// "before optimisation" entry for several dashed series, or the key of the
+// segments. Lines are 2 pixels wide, dots 7 pixels across.
 
 // A free segment in data coordinates (e.g. a loop-closure edge), drawn under
-// the series, 1 pixel wide.
+// the series, 1 pixel wide; not in the legend (add a series without points).
 struct Segment {
   double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
   std::string color = "#d55e00";
-  std::string label;       // legend entry; segments sharing a label share one
 };
 
 struct Figure {

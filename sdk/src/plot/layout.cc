@@ -133,14 +133,7 @@ void SetLegend(const Figure& figure, Layout* layout) {
     const Series& s = figure.series[i];
     if (s.label.empty()) continue;
     layout->legend.push_back({CleanText(s.label), ParseColor(SeriesColor(figure, i), "series '" + s.label + "'"),
-                              s.line, s.dashed, s.markers || !s.line, s.marker, s.width});
-  }
-  std::vector<std::string> seen;
-  for (const Segment& s : figure.segments) {
-    if (s.label.empty() || std::find(seen.begin(), seen.end(), s.label) != seen.end()) continue;
-    seen.push_back(s.label);
-    layout->legend.push_back({CleanText(s.label), ParseColor(s.color, "segment '" + s.label + "'"), true,
-                              false, false, Marker::kCircle, 1.5});
+                              s.line, s.dashed, s.markers || !s.line});
   }
   if (layout->legend.empty()) return;
   double widest = 0;
@@ -164,10 +157,6 @@ void Validate(const Figure& figure) {
     if (s.x.size() != s.y.size()) {
       throw Error("figure '" + figure.title + "', series '" + s.label + "': x has " + std::to_string(s.x.size()) +
                   " values, y has " + std::to_string(s.y.size()));
-    }
-    if (!(s.width > 0 && s.width <= 100)) {
-      throw Error("figure '" + figure.title + "', series '" + s.label + "': line width " + std::to_string(s.width) +
-                  " is outside (0, 100] pixels");
     }
     ParseColor(SeriesColor(figure, i), "figure '" + figure.title + "', series '" + s.label + "'");
   }

@@ -42,15 +42,17 @@ std::string SeriesColor(const Figure& figure, size_t index);
 // stops drawing; XML refuses control characters): bad bytes become U+FFFD.
 std::string CleanText(const std::string& text);
 
-// One row of the legend: the sample drawn as the series (or segment) is.
+// Drawing sizes of the data, pixels.
+constexpr double kLineWidth = 2;
+constexpr double kDotRadius = 3.5;
+
+// One row of the legend: the sample drawn as the series is.
 struct LegendEntry {
   std::string label;
   Rgba color;
   bool line = true;
   bool dashed = false;
   bool markers = false;
-  Marker marker = Marker::kCircle;
-  double width = 2;
 };
 
 struct Layout {

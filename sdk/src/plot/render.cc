@@ -44,8 +44,12 @@ class Painter {
     cairo_set_source_rgb(cr_, 1, 1, 1);
     cairo_paint(cr_);
     Grid();
+    Box();
+    // The data goes over the box, clipped a little outside it: a curve along
+    // an axis limit (a recall of 100 %) stays visible instead of half hidden.
     cairo_save(cr_);
-    cairo_rectangle(cr_, f.left, f.top, f.right - f.left, f.bottom - f.top);
+    const double spill = 2;
+    cairo_rectangle(cr_, f.left - spill, f.top - spill, f.right - f.left + 2 * spill, f.bottom - f.top + 2 * spill);
     cairo_clip(cr_);
     Segments();
     for (size_t i = 0; i < figure_.series.size(); ++i) SeriesLine(i);
@@ -101,21 +105,17 @@ class Painter {
     return internal::ClipSegment(a, b, f.left - border, f.top - border, f.right + border, f.bottom + border);
   }
 
+  // One stroke each: where translucent segments overlap, the colour deepens.
   void Segments() {
     const Frame& f = layout_.frame;
     cairo_set_line_width(cr_, 1);
     cairo_set_line_cap(cr_, CAIRO_LINE_CAP_ROUND);
-    // Runs of segments of one colour make one path (one SVG element).
-    for (size_t i = 0; i < figure_.segments.size();) {
-      const std::string& color = figure_.segments[i].color;
-      for (; i < figure_.segments.size() && figure_.segments[i].color == color; ++i) {
-        const Segment& s = figure_.segments[i];
-        Eigen::Vector2d a = f.ToPixel(s.x0, s.y0), b = f.ToPixel(s.x1, s.y1);
-        if (!Clip(&a, &b)) continue;
-        cairo_move_to(cr_, a.x(), a.y());
-        cairo_line_to(cr_, b.x(), b.y());
-      }
-      SetColor(cr_, internal::ParseColor(color, "segment"));
+    for (const Segment& s : figure_.segments) {
+      Eigen::Vector2d a = f.ToPixel(s.x0, s.y0), b = f.ToPixel(s.x1, s.y1);
+      if (!Clip(&a, &b)) continue;
+      cairo_move_to(cr_, a.x(), a.y());
+      cairo_line_to(cr_, b.x(), b.y());
+      SetColor(cr_, internal::ParseColor(s.color, "segment"));
       cairo_stroke(cr_);
     }
   }
@@ -157,80 +157,48 @@ class Painter {
       open = b == b_before;
     }
     SetColor(cr_, internal::ParseColor(internal::SeriesColor(figure_, index), "series"));
-    SetLineStyle(s.width, s.dashed);
+    SetLineStyle(internal::kLineWidth, s.dashed);
     cairo_stroke(cr_);
     cairo_set_dash(cr_, nullptr, 0, 0);
   }
 
-  // Adds the marker's outline to the path (a cross is stroked, the rest filled).
-  void MarkerPath(Marker marker, const Eigen::Vector2d& p, double r) {
-    const double x = p.x(), y = p.y();
+  void DotPath(const Eigen::Vector2d& p) {
     cairo_new_sub_path(cr_);
-    switch (marker) {
-      case Marker::kCircle:
-        cairo_arc(cr_, x, y, r, 0, 2 * M_PI);
-        break;
-      case Marker::kSquare:
-        cairo_rectangle(cr_, x - 0.85 * r, y - 0.85 * r, 1.7 * r, 1.7 * r);
-        break;
-      case Marker::kTriangle:
-        cairo_move_to(cr_, x, y - 1.2 * r);
-        cairo_line_to(cr_, x + 1.05 * r, y + 0.65 * r);
-        cairo_line_to(cr_, x - 1.05 * r, y + 0.65 * r);
-        cairo_close_path(cr_);
-        break;
-      case Marker::kDiamond:
-        cairo_move_to(cr_, x, y - 1.2 * r);
-        cairo_line_to(cr_, x + 0.9 * r, y);
-        cairo_line_to(cr_, x, y + 1.2 * r);
-        cairo_line_to(cr_, x - 0.9 * r, y);
-        cairo_close_path(cr_);
-        break;
-      case Marker::kCross:
-        cairo_move_to(cr_, x - r, y - r);
-        cairo_line_to(cr_, x + r, y + r);
-        cairo_move_to(cr_, x - r, y + r);
-        cairo_line_to(cr_, x + r, y - r);
-        break;
-    }
+    cairo_arc(cr_, p.x(), p.y(), internal::kDotRadius, 0, 2 * M_PI);
   }
-
-  void FinishMarkers(Marker marker) {
-    if (marker == Marker::kCross) {
-      cairo_set_dash(cr_, nullptr, 0, 0);
-      cairo_set_line_width(cr_, 1.5);
-      cairo_set_line_cap(cr_, CAIRO_LINE_CAP_ROUND);
-      cairo_stroke(cr_);
-    } else {
-      cairo_fill(cr_);
-    }
-  }
-
-  static double MarkerRadius(const Series& s) { return std::max(3.5, 1.6 * s.width); }
 
   void SeriesMarkers(size_t index) {
     const Series& s = figure_.series[index];
     if (!s.markers && s.line) return;
     const Frame& f = layout_.frame;
-    const double r = MarkerRadius(s);
+    const double r = internal::kDotRadius;
     for (size_t k = 0; k < s.x.size(); ++k) {
       if (!std::isfinite(s.x[k]) || !std::isfinite(s.y[k])) continue;
       const Eigen::Vector2d p = f.ToPixel(s.x[k], s.y[k]);
       if (p.x() < f.left - 2 * r || p.x() > f.right + 2 * r || p.y() < f.top - 2 * r || p.y() > f.bottom + 2 * r)
         continue;
-      MarkerPath(s.marker, p, r);
+      DotPath(p);
     }
     SetColor(cr_, internal::ParseColor(internal::SeriesColor(figure_, index), "series"));
-    FinishMarkers(s.marker);
+    cairo_fill(cr_);
   }
 
+  // The plot area's frame, 1 pixel just outside it.
+  void Box() {
+    const Frame& f = layout_.frame;
+    SetColor(cr_, kBlack);
+    cairo_set_line_width(cr_, 1);
+    cairo_rectangle(cr_, f.left - 0.5, f.top - 0.5, f.right - f.left + 1, f.bottom - f.top + 1);
+    cairo_stroke(cr_);
+  }
+
+  // Ticks (outward) and their labels.
   void Axes() {
     const Frame& f = layout_.frame;
     const internal::TextSize digits = internal::MeasureText("0", internal::kTickFont);
     SetColor(cr_, kBlack);
     cairo_set_line_width(cr_, 1);
     cairo_set_line_cap(cr_, CAIRO_LINE_CAP_BUTT);
-    cairo_rectangle(cr_, f.left - 0.5, f.top - 0.5, f.right - f.left + 1, f.bottom - f.top + 1);
     for (double x : layout_.x_ticks) {
       const double u = Crisp(f.ToPixel(x, 0).x());
       cairo_move_to(cr_, u, f.bottom + 0.5);
@@ -294,15 +262,15 @@ class Painter {
       const double xs = x0 + internal::kLegendPad;
       SetColor(cr_, e.color);
       if (e.line) {
-        SetLineStyle(e.width, e.dashed);
+        SetLineStyle(internal::kLineWidth, e.dashed);
         cairo_move_to(cr_, xs, y);
         cairo_line_to(cr_, xs + internal::kLegendSample, y);
         cairo_stroke(cr_);
         cairo_set_dash(cr_, nullptr, 0, 0);
       }
       if (e.markers) {
-        MarkerPath(e.marker, {xs + 0.5 * internal::kLegendSample, y}, std::max(3.5, 1.6 * e.width));
-        FinishMarkers(e.marker);
+        DotPath({xs + 0.5 * internal::kLegendSample, y});
+        cairo_fill(cr_);
       }
       Text(e.label, internal::kLegendFont, xs + internal::kLegendSample + 8, y + 0.5 * digits.digit_height,
            Align::kLeft);
