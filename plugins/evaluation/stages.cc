@@ -51,7 +51,7 @@ struct EvalOptions {
   std::vector<std::string> splits;  // Splits "NAME=REGEX" on the query image path.
   std::vector<double> positions_m = {0.1, 0.25, 1.0};  // Position thresholds (<=).
   std::vector<double> angles_deg = {1.0, 2.0, 5.0};    // Angle thresholds (<=), paired.
-  double curve_max_m = 1.0;  // Curve x range; angle threshold = 10 x position (m).
+  double curve_max_m = 1.0;  // Curve's largest position threshold (log axis over 3 decades); angle = 10 x position.
 
   static void Declare(ParamSchema<EvalOptions>& s) {
     s.Add("method", &EvalOptions::method, "row label of this method in the tables");
@@ -59,7 +59,7 @@ struct EvalOptions {
     s.Add("splits", &EvalOptions::splits, "splits NAME=REGEX matched on the query image path");
     s.Add("positions_m", &EvalOptions::positions_m, "position thresholds in metres (<=)");
     s.Add("angles_deg", &EvalOptions::angles_deg, "angle thresholds in degrees (<=), one per position");
-    s.Add("curve_max_m", &EvalOptions::curve_max_m, "recall curve up to this position threshold (angle = 10 x metres in degrees)").Min(0.01);
+    s.Add("curve_max_m", &EvalOptions::curve_max_m, "recall curve up to this position threshold, from 1/1000 of it on a log axis (angle = 10 x metres in degrees)").Min(0.01);
   }
   bool Check(std::string* why) const {
     if (positions_m.size() != angles_deg.size() || positions_m.empty())
@@ -153,7 +153,7 @@ class LocalizationEval : public Stage<EvalOptions> {
       const std::string label = key.first == "all" && key.second == "all"
                                     ? o.method
                                     : key.first + "/" + key.second;
-      curves.push_back(RecallCurve(list, label, o.curve_max_m, kAnglePerMetre));
+      curves.push_back(RecallCurve(list, label, o.curve_max_m, kAnglePerMetre, 150, kRecallDecades));
       for (size_t i = 0; i < curves.back().x.size(); ++i)
         curve_table.rows.push_back({key.first, key.second, FormatDouble(curves.back().x[i]),
                                     FormatDouble(kAnglePerMetre * curves.back().x[i]),
@@ -261,5 +261,5 @@ class CombinedTable : public Stage<TableOptions> {
 }  // namespace
 }  // namespace locforge::evaluation
 
-LOCFORGE_PLUGIN("evaluation", "1.1.0", "Localization evaluation and tables",
+LOCFORGE_PLUGIN("evaluation", "1.2.0", "Localization evaluation and tables",
                 locforge::evaluation::LocalizationEval, locforge::evaluation::CombinedTable)

@@ -61,6 +61,11 @@ struct Figure {
   double x_max = std::numeric_limits<double>::quiet_NaN();
   double y_min = std::numeric_limits<double>::quiet_NaN();
   double y_max = std::numeric_limits<double>::quiet_NaN();
+  // Logarithmic axes, for values spread over decades (error thresholds from
+  // 1 cm to 1 m): ticks at 1 (2, 5) x 10^k; points <= 0 are not drawn. Not
+  // with equal_aspect.
+  bool x_log = false;
+  bool y_log = false;
 };
 
 // Where the data lands in the picture: the plot area in pixels (y down) and
@@ -69,6 +74,8 @@ struct Figure {
 struct Frame {
   double x_min = 0, x_max = 1, y_min = 0, y_max = 1;
   int left = 0, top = 0, right = 1, bottom = 1;
+  bool x_log = false, y_log = false;
+  // Non-finite for a point that cannot be drawn (<= 0 on a log axis).
   Eigen::Vector2d ToPixel(double x, double y) const;
 };
 Frame ComputeFrame(const Figure& figure);

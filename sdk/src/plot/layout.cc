@@ -19,28 +19,39 @@ int HexDigit(char c) {
   return -1;
 }
 
+// The data's extent over the points that can be drawn (> 0 on log axes).
 struct Extents {
+  bool x_log = false, y_log = false;
   double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
   void Add(double x, double y) {
-    if (!std::isfinite(x) || !std::isfinite(y)) return;
+    if (!std::isfinite(x) || !std::isfinite(y) || (x_log && x <= 0) || (y_log && y <= 0)) return;
     x0 = std::min(x0, x), x1 = std::max(x1, x);
     y0 = std::min(y0, y), y1 = std::max(y1, y);
   }
 };
 
+// One axis' range: the data's with a 3 % margin (of decades on a log axis),
+// unless the figure fixes a limit.
+void AxisRange(double lo, double hi, bool has_data, double fixed_min, double fixed_max, bool log, double* min,
+               double* max) {
+  const auto to = [log](double v) { return log ? std::log10(v) : v; };
+  const auto from = [log](double v) { return log ? std::pow(10.0, v) : v; };
+  if (!has_data) lo = log ? 1 : 0, hi = log ? 10 : 1;
+  double a = to(lo), b = to(hi);
+  if (b - a < 1e-12) a -= 0.5, b += 0.5;
+  const double margin = 0.03 * (b - a);
+  *min = std::isnan(fixed_min) ? from(a - margin) : fixed_min;
+  *max = std::isnan(fixed_max) ? from(b + margin) : fixed_max;
+  if (!(*max > *min)) *max = log ? *min * 10 : *min + 1;
+}
+
 // The data ranges of a plot area of the frame's pixel size.
 void SetRanges(const Figure& figure, const Extents& data, Frame* frame) {
-  double x0 = data.x0, x1 = data.x1, y0 = data.y0, y1 = data.y1;
-  if (!std::isfinite(x0)) x0 = 0, x1 = 1, y0 = 0, y1 = 1;
-  if (x1 - x0 < 1e-12) x0 -= 0.5, x1 += 0.5;
-  if (y1 - y0 < 1e-12) y0 -= 0.5, y1 += 0.5;
-  const double mx = 0.03 * (x1 - x0), my = 0.03 * (y1 - y0);
-  frame->x_min = std::isnan(figure.x_min) ? x0 - mx : figure.x_min;
-  frame->x_max = std::isnan(figure.x_max) ? x1 + mx : figure.x_max;
-  frame->y_min = std::isnan(figure.y_min) ? y0 - my : figure.y_min;
-  frame->y_max = std::isnan(figure.y_max) ? y1 + my : figure.y_max;
-  if (!(frame->x_max > frame->x_min)) frame->x_max = frame->x_min + 1;
-  if (!(frame->y_max > frame->y_min)) frame->y_max = frame->y_min + 1;
+  const bool has_data = std::isfinite(data.x0);
+  frame->x_log = figure.x_log;
+  frame->y_log = figure.y_log;
+  AxisRange(data.x0, data.x1, has_data, figure.x_min, figure.x_max, figure.x_log, &frame->x_min, &frame->x_max);
+  AxisRange(data.y0, data.y1, has_data, figure.y_min, figure.y_max, figure.y_log, &frame->y_min, &frame->y_max);
   if (figure.equal_aspect) {
     // Grow the smaller range so that one data unit has the same length on
     // both axes, centred on the data.
@@ -58,27 +69,56 @@ void SetRanges(const Figure& figure, const Extents& data, Frame* frame) {
   }
 }
 
-double WidestLabel(const std::vector<double>& ticks, double step) {
+double WidestLabel(const std::vector<std::string>& labels) {
   double widest = 0;
-  for (double t : ticks) widest = std::max(widest, MeasureText(DisplayTickLabel(t, step), kTickFont).width);
+  for (const std::string& label : labels) widest = std::max(widest, MeasureText(label, kTickFont).width);
   return widest;
 }
 
+std::vector<std::string> LinearLabels(const std::vector<double>& ticks, double step) {
+  std::vector<std::string> labels;
+  for (double t : ticks) labels.push_back(DisplayTickLabel(t, step));
+  return labels;
+}
+
+std::vector<std::string> LogLabels(const std::vector<double>& ticks) {
+  std::vector<std::string> labels;
+  for (double t : ticks) labels.push_back(LogTickLabel(t));
+  return labels;
+}
+
 // Ticks of both axes: about one per 100 px along x and 70 px along y, fewer
-// when the x labels would touch; maps (equal aspect) use one step for both.
+// when the labels would touch; maps (equal aspect) use one step for both.
 void SetTicks(const Figure& figure, Layout* layout) {
   const Frame& f = layout->frame;
-  int x_target = std::clamp(static_cast<int>(std::lround((f.right - f.left) / 100.0)), 3, 10);
-  const int y_target = std::clamp(static_cast<int>(std::lround((f.bottom - f.top) / 70.0)), 3, 10);
-  layout->y_step = TickStep(f.y_min, f.y_max, y_target);
-  for (;; --x_target) {
-    layout->x_step = TickStep(f.x_min, f.x_max, x_target);
-    if (figure.equal_aspect) layout->x_step = layout->y_step = std::max(layout->x_step, layout->y_step);
-    layout->x_ticks = TicksWithStep(f.x_min, f.x_max, layout->x_step);
-    const double spacing = layout->x_step / (f.x_max - f.x_min) * (f.right - f.left);
-    if (x_target <= 2 || WidestLabel(layout->x_ticks, layout->x_step) + 12 <= spacing) break;
+  const double width = f.right - f.left, height = f.bottom - f.top;
+  const double line = MeasureText("0", kTickFont).digit_height;
+  if (figure.y_log) {
+    LogTicks(f.y_min, f.y_max, height, [&](const std::vector<double>&) { return 1.8 * line; }, &layout->y_ticks,
+             &layout->y_minor);
+    layout->y_labels = LogLabels(layout->y_ticks);
+  } else {
+    const int target = std::clamp(static_cast<int>(std::lround(height / 70.0)), 3, 10);
+    layout->y_step = TickStep(f.y_min, f.y_max, target);
   }
-  layout->y_ticks = TicksWithStep(f.y_min, f.y_max, layout->y_step);
+  if (figure.x_log) {
+    LogTicks(f.x_min, f.x_max, width, [](const std::vector<double>& ticks) { return WidestLabel(LogLabels(ticks)) + 12; },
+             &layout->x_ticks, &layout->x_minor);
+    layout->x_labels = LogLabels(layout->x_ticks);
+  } else {
+    for (int target = std::clamp(static_cast<int>(std::lround(width / 100.0)), 3, 10);; --target) {
+      layout->x_step = TickStep(f.x_min, f.x_max, target);
+      if (figure.equal_aspect) layout->x_step = layout->y_step = std::max(layout->x_step, layout->y_step);
+      layout->x_ticks = TicksWithStep(f.x_min, f.x_max, layout->x_step);
+      layout->x_labels = LinearLabels(layout->x_ticks, layout->x_step);
+      const double spacing = layout->x_step / (f.x_max - f.x_min) * width;
+      if (target <= 2 || WidestLabel(layout->x_labels) + 12 <= spacing) break;
+    }
+  }
+  if (!figure.y_log) {
+    layout->y_ticks = TicksWithStep(f.y_min, f.y_max, layout->y_step);
+    layout->y_labels = LinearLabels(layout->y_ticks, layout->y_step);
+  }
 }
 
 // Pixel positions along every drawn line and marker, every few pixels: what
@@ -86,7 +126,7 @@ void SetTicks(const Figure& figure, Layout* layout) {
 std::vector<Eigen::Vector2d> DataSamples(const Figure& figure, const Frame& f) {
   std::vector<Eigen::Vector2d> samples;
   auto along = [&](Eigen::Vector2d a, Eigen::Vector2d b) {
-    if (!ClipSegment(&a, &b, f.left, f.top, f.right, f.bottom)) return;
+    if (!a.allFinite() || !b.allFinite() || !ClipSegment(&a, &b, f.left, f.top, f.right, f.bottom)) return;
     const int steps = static_cast<int>(std::ceil((b - a).norm() / 3.0));
     for (int i = 0; i <= steps; ++i) samples.push_back(a + (b - a) * (steps ? double(i) / steps : 0.0));
   };
@@ -152,6 +192,13 @@ void Validate(const Figure& figure) {
   for (double v : {figure.x_min, figure.x_max, figure.y_min, figure.y_max}) {
     if (!std::isnan(v) && !std::isfinite(v)) throw Error("figure '" + figure.title + "': an axis limit is infinite");
   }
+  if ((figure.x_log && (figure.x_min <= 0 || figure.x_max <= 0)) ||
+      (figure.y_log && (figure.y_min <= 0 || figure.y_max <= 0))) {
+    throw Error("figure '" + figure.title + "': a logarithmic axis needs limits > 0");
+  }
+  if (figure.equal_aspect && (figure.x_log || figure.y_log)) {
+    throw Error("figure '" + figure.title + "': equal_aspect needs linear axes");
+  }
   for (size_t i = 0; i < figure.series.size(); ++i) {
     const Series& s = figure.series[i];
     if (s.x.size() != s.y.size()) {
@@ -202,6 +249,60 @@ std::string TickLabel(double value, double step) {
 std::string DisplayTickLabel(double value, double step) {
   std::string label = TickLabel(value, step);
   if (!label.empty() && label[0] == '-') label.replace(0, 1, "\xE2\x88\x92");
+  return label;
+}
+
+void LogTicks(double lo, double hi, double length_px, const std::function<double(const std::vector<double>&)>& gap,
+              std::vector<double>* major, std::vector<double>* minor) {
+  major->clear();
+  minor->clear();
+  if (!(lo > 0 && hi > lo && length_px > 0)) return;
+  const double decades = std::log10(hi / lo), per_decade = length_px / decades;
+  const int first = static_cast<int>(std::floor(std::log10(lo))), last = static_cast<int>(std::ceil(std::log10(hi)));
+  if (last - first > 400) return;
+  const auto inside = [&](double v) { return v >= lo * (1 - 1e-9) && v <= hi * (1 + 1e-9); };
+  // Labelled choices, densest first: 1, 2, 5 x 10^k; 10^k; every n-th 10^k.
+  std::vector<double> chosen;
+  int stride = 1;
+  for (int option = 0;; ++option) {
+    const bool with_2_5 = option == 0;
+    stride = std::max(1, option);
+    chosen.clear();
+    for (int k = first; k <= last; ++k) {
+      for (double m : {1.0, 2.0, 5.0}) {
+        if ((m != 1 && !with_2_5) || (m == 1 && k % stride != 0)) continue;
+        const double v = m * std::pow(10.0, k);
+        if (inside(v)) chosen.push_back(v);
+      }
+    }
+    double closest = INFINITY;
+    for (size_t i = 1; i < chosen.size(); ++i)
+      closest = std::min(closest, std::log10(chosen[i] / chosen[i - 1]) * per_decade);
+    if (chosen.size() < 2 || closest >= gap(chosen) || stride >= last - first) break;
+  }
+  *major = chosen;
+  // Minor ticks where a decade has room for them (as matplotlib's).
+  for (int k = first; k <= last; ++k) {
+    for (int m = 1; m <= 9; ++m) {
+      const double v = m * std::pow(10.0, k);
+      if (!inside(v) || std::find(major->begin(), major->end(), v) != major->end()) continue;
+      if (m == 1 || per_decade >= 60) minor->push_back(v);
+    }
+  }
+}
+
+std::string LogTickLabel(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%g", value);
+  std::string label = buffer;
+  // "1e-06" -> "1e-6", "1e+07" -> "1e7".
+  const size_t e = label.find('e');
+  if (e != std::string::npos) {
+    std::string exponent = label.substr(e + 1);
+    const bool negative = exponent[0] == '-';
+    exponent.erase(0, exponent.find_first_not_of("+-0"));
+    label = label.substr(0, e + 1) + (negative ? "\xE2\x88\x92" : "") + exponent;
+  }
   return label;
 }
 
@@ -272,6 +373,7 @@ bool ClipSegment(Eigen::Vector2d* a, Eigen::Vector2d* b, double x0, double y0, d
 Layout ComputeLayout(const Figure& figure) {
   Validate(figure);
   Extents data;
+  data.x_log = figure.x_log, data.y_log = figure.y_log;
   for (const Series& s : figure.series) {
     for (size_t i = 0; i < s.x.size(); ++i) data.Add(s.x[i], s.y[i]);
   }
@@ -304,11 +406,11 @@ Layout ComputeLayout(const Figure& figure) {
     f.bottom = std::max(f.top + 10, figure.height - static_cast<int>(bottom));
     SetRanges(figure, data, &f);
     SetTicks(figure, &layout);
-    const double new_left = std::ceil(kPad + y_label + WidestLabel(layout.y_ticks, layout.y_step) + 4 + kTickLength);
+    const double new_left = std::ceil(kPad + y_label + WidestLabel(layout.y_labels) + 4 + kTickLength);
     double new_right = kPad + 8;
     if (!layout.x_ticks.empty()) {
-      const double last = f.ToPixel(layout.x_ticks.back(), 0).x();
-      const double half = 0.5 * MeasureText(DisplayTickLabel(layout.x_ticks.back(), layout.x_step), kTickFont).width;
+      const double last = f.ToPixel(layout.x_ticks.back(), f.y_max).x();
+      const double half = 0.5 * MeasureText(layout.x_labels.back(), kTickFont).width;
       new_right = std::max(new_right, std::ceil(half + 4 - (f.right - last)));
     }
     if (new_left <= left && new_right <= right) break;
@@ -330,9 +432,10 @@ std::string PaletteColor(size_t i) {
 }
 
 Eigen::Vector2d Frame::ToPixel(double x, double y) const {
-  const double u = left + (x - x_min) / (x_max - x_min) * (right - left);
-  const double v = bottom - (y - y_min) / (y_max - y_min) * (bottom - top);
-  return {u, v};
+  // log10 of a value <= 0 is -inf or NaN: the pixel is then not finite.
+  const double fx = x_log ? std::log10(x / x_min) / std::log10(x_max / x_min) : (x - x_min) / (x_max - x_min);
+  const double fy = y_log ? std::log10(y / y_min) / std::log10(y_max / y_min) : (y - y_min) / (y_max - y_min);
+  return {left + fx * (right - left), bottom - fy * (bottom - top)};
 }
 
 Frame ComputeFrame(const Figure& figure) { return internal::ComputeLayout(figure).frame; }

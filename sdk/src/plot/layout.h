@@ -3,6 +3,7 @@
 #ifndef LOCFORGE_SDK_SRC_PLOT_LAYOUT_H_
 #define LOCFORGE_SDK_SRC_PLOT_LAYOUT_H_
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,14 @@ std::vector<double> TicksWithStep(double lo, double hi, double step);
 std::string TickLabel(double value, double step);
 // The same for display: a real minus sign (U+2212) instead of '-'.
 std::string DisplayTickLabel(double value, double step);
+// Ticks of a log axis over [lo, hi] (0 < lo < hi): `major` (labelled) at
+// 1 x 10^k, also at 2 and 5 x 10^k when `gap(major)` (the pixels the labels
+// need between neighbours) allows, every n-th decade when it must; `minor`
+// at the other m x 10^k (m = 1..9) where a decade is wide enough for them.
+void LogTicks(double lo, double hi, double length_px, const std::function<double(const std::vector<double>&)>& gap,
+              std::vector<double>* major, std::vector<double>* minor);
+// A log tick's label: "0.01", "0.5", "20", "1e-06".
+std::string LogTickLabel(double value);
 
 struct Rgba {
   double r = 0, g = 0, b = 0, a = 1;
@@ -57,8 +66,10 @@ struct LegendEntry {
 
 struct Layout {
   Frame frame;
-  std::vector<double> x_ticks, y_ticks;
-  double x_step = 1, y_step = 1;
+  std::vector<double> x_ticks, y_ticks;            // labelled, with grid lines
+  std::vector<std::string> x_labels, y_labels;      // their labels
+  std::vector<double> x_minor, y_minor;            // log axes: short unlabelled ticks
+  double x_step = 1, y_step = 1;                    // linear axes: the tick step
   double title_size = kTitleFont;  // smaller when a long title would not fit
   std::vector<LegendEntry> legend;
   double legend_x = 0, legend_y = 0, legend_w = 0, legend_h = 0;  // box, pixels

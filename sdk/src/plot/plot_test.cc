@@ -183,10 +183,11 @@ TEST(Plot, MarginsFitTheTickLabelsAndTheyNeverTouch) {
   const internal::Layout layout = internal::ComputeLayout(figure);
   const Frame& f = layout.frame;
   double widest_y = 0, widest_x = 0;
-  for (double y : layout.y_ticks)
-    widest_y = std::max(widest_y, internal::MeasureText(internal::DisplayTickLabel(y, layout.y_step), 13).width);
-  for (double x : layout.x_ticks)
-    widest_x = std::max(widest_x, internal::MeasureText(internal::DisplayTickLabel(x, layout.x_step), 13).width);
+  for (const std::string& label : layout.y_labels)
+    widest_y = std::max(widest_y, internal::MeasureText(label, internal::kTickFont).width);
+  for (const std::string& label : layout.x_labels)
+    widest_x = std::max(widest_x, internal::MeasureText(label, internal::kTickFont).width);
+  EXPECT_EQ(layout.x_labels.front(), internal::DisplayTickLabel(layout.x_ticks.front(), layout.x_step));
   EXPECT_GE(f.left, widest_y + internal::kTickLength + 4 + 14);  // labels + the rotated y label
   const double spacing = layout.x_step / (f.x_max - f.x_min) * (f.right - f.left);
   EXPECT_GE(spacing, widest_x + 12);
@@ -262,6 +263,52 @@ TEST(Plot, PngLinesPassThroughTheMappedPixels) {
   EXPECT_EQ(image.At(int(end.x()), int(end.y())), (Rgb{255, 255, 255}));
 }
 
+TEST(Plot, LogAxesMapDecadesToEqualLengthsWithNiceTicks) {
+  Figure figure;
+  figure.x_log = true;
+  figure.x_label = "threshold (m)";
+  figure.x_min = 0.01, figure.x_max = 1, figure.y_min = 0, figure.y_max = 100;
+  // Points at x <= 0 cannot be drawn: they break the line, as NaN does.
+  figure.series.push_back({"", {0, 0.01, 0.1, 1, -1}, {1, 5.3, 25.3, 45.3, 90}, "#0072b2"});
+  const internal::Layout layout = internal::ComputeLayout(figure);
+  const Frame& f = layout.frame;
+  EXPECT_NEAR(f.ToPixel(0.1, 50).x(), 0.5 * (f.left + f.right), 1e-9);
+  EXPECT_NEAR(f.ToPixel(0.01, 50).x(), f.left, 1e-9);
+  EXPECT_FALSE(f.ToPixel(0, 50).allFinite());
+  EXPECT_FALSE(f.ToPixel(-1, 50).allFinite());
+  EXPECT_EQ(layout.x_labels, (std::vector<std::string>{"0.01", "0.02", "0.05", "0.1", "0.2", "0.5", "1"}));
+  EXPECT_EQ(layout.x_minor.size(), 12u);  // 0.03, 0.04, 0.06 .. 0.09, 0.3, 0.4, 0.6 .. 0.9
+  // The line passes through the mapped pixels: y = 20 log10(x / 0.01) + 5.3 is straight on this axis.
+  const Image image = DecodePng(RenderPng(figure));
+  for (double x : {0.013, 0.15, 0.3, 0.7}) {  // off the grid lines
+    const double y = 20 * std::log10(x / 0.01) + 5.3;
+    const Eigen::Vector2d p = f.ToPixel(x, y);
+    const Ink ink = InkAlong(image, int(p.x()), int(p.y()) - 7, int(p.y()) + 7, true, 0);
+    EXPECT_NEAR(ink.centre, p.y(), 0.5) << "x = " << x;
+  }
+  // Many decades: labels thinned to every n-th decade, never touching.
+  Figure wide;
+  wide.x_log = wide.y_log = true;
+  wide.series.push_back({"", {1e-9, 1e9}, {1e-3, 1e3}});
+  const internal::Layout w = internal::ComputeLayout(wide);
+  ASSERT_GE(w.x_ticks.size(), 3u);
+  double widest = 0;
+  for (const std::string& label : w.x_labels) widest = std::max(widest, internal::MeasureText(label, 13).width);
+  for (size_t i = 1; i < w.x_ticks.size(); ++i)
+    EXPECT_GE(w.frame.ToPixel(w.x_ticks[i], 1).x() - w.frame.ToPixel(w.x_ticks[i - 1], 1).x(), widest + 12);
+  EXPECT_EQ(internal::LogTickLabel(1e-6), "1e\xE2\x88\x92" "6");
+  EXPECT_EQ(internal::LogTickLabel(1e7), "1e7");
+  EXPECT_NO_THROW(RenderSvg(wide));
+  // Refused: limits <= 0 on a log axis, a log map.
+  Figure zero = figure;
+  zero.x_min = 0;
+  EXPECT_THROW(RenderPng(zero), Error);
+  Figure map = figure;
+  map.x_min = map.y_min = 1;
+  map.equal_aspect = true;
+  EXPECT_THROW(ComputeFrame(map), Error);
+}
+
 TEST(Plot, PngHasTextInTheTitleAxisLabelAndTickLabelAreas) {
   Figure labelled = TwoSeries();
   Figure bare = TwoSeries();
@@ -274,8 +321,8 @@ TEST(Plot, PngHasTextInTheTitleAxisLabelAndTickLabelAreas) {
     const Frame& f = layout.frame;
     const Image image = DecodePng(RenderPng(*figure));
     double widest = 0;
-    for (double y : layout.y_ticks)
-      widest = std::max(widest, internal::MeasureText(internal::DisplayTickLabel(y, layout.y_step), 13).width);
+    for (const std::string& label : layout.y_labels)
+      widest = std::max(widest, internal::MeasureText(label, internal::kTickFont).width);
     const int below_ticks = static_cast<int>(f.bottom + internal::kTickLength + 4 + digits.digit_height + 3);
     const int left_of_ticks = static_cast<int>(f.left - internal::kTickLength - 4 - widest - 2);
     const int title = DarkPixels(image, 0, 0, figure->width, f.top - 6);
@@ -298,11 +345,11 @@ TEST(Plot, PngHasTextInTheTitleAxisLabelAndTickLabelAreas) {
     }
     // Tick labels under every x tick and left of every y tick.
     for (double x : layout.x_ticks) {
-      const int u = static_cast<int>(f.ToPixel(x, 0).x());
+      const int u = static_cast<int>(f.ToPixel(x, f.y_min).x());
       EXPECT_GT(DarkPixels(image, u - 16, f.bottom + 6, u + 16, below_ticks), 8) << "x tick " << x;
     }
     for (double y : layout.y_ticks) {
-      const int v = static_cast<int>(f.ToPixel(0, y).y());
+      const int v = static_cast<int>(f.ToPixel(f.x_min, y).y());
       EXPECT_GT(DarkPixels(image, left_of_ticks, v - 7, f.left - 6, v + 7), 5) << "y tick " << y;
     }
   }

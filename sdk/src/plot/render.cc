@@ -85,12 +85,12 @@ class Painter {
     cairo_set_line_width(cr_, 1);
     SetColor(cr_, kGrid);
     for (double x : layout_.x_ticks) {
-      const double u = Crisp(f.ToPixel(x, 0).x());
+      const double u = Crisp(f.ToPixel(x, f.y_min).x());
       cairo_move_to(cr_, u, f.top);
       cairo_line_to(cr_, u, f.bottom);
     }
     for (double y : layout_.y_ticks) {
-      const double v = Crisp(f.ToPixel(0, y).y());
+      const double v = Crisp(f.ToPixel(f.x_min, y).y());
       cairo_move_to(cr_, f.left, v);
       cairo_line_to(cr_, f.right, v);
     }
@@ -112,7 +112,7 @@ class Painter {
     cairo_set_line_cap(cr_, CAIRO_LINE_CAP_ROUND);
     for (const Segment& s : figure_.segments) {
       Eigen::Vector2d a = f.ToPixel(s.x0, s.y0), b = f.ToPixel(s.x1, s.y1);
-      if (!Clip(&a, &b)) continue;
+      if (!a.allFinite() || !b.allFinite() || !Clip(&a, &b)) continue;
       cairo_move_to(cr_, a.x(), a.y());
       cairo_line_to(cr_, b.x(), b.y());
       SetColor(cr_, internal::ParseColor(s.color, "segment"));
@@ -147,7 +147,7 @@ class Painter {
       }
       Eigen::Vector2d a = f.ToPixel(s.x[k], s.y[k]), b = f.ToPixel(s.x[k + 1], s.y[k + 1]);
       const Eigen::Vector2d b_before = b;
-      if (!Clip(&a, &b)) {
+      if (!a.allFinite() || !b.allFinite() || !Clip(&a, &b)) {
         open = false;
         continue;
       }
@@ -175,7 +175,7 @@ class Painter {
     for (size_t k = 0; k < s.x.size(); ++k) {
       if (!std::isfinite(s.x[k]) || !std::isfinite(s.y[k])) continue;
       const Eigen::Vector2d p = f.ToPixel(s.x[k], s.y[k]);
-      if (p.x() < f.left - 2 * r || p.x() > f.right + 2 * r || p.y() < f.top - 2 * r || p.y() > f.bottom + 2 * r)
+      if (!p.allFinite() || p.x() < f.left - 2 * r || p.x() > f.right + 2 * r || p.y() < f.top - 2 * r || p.y() > f.bottom + 2 * r)
         continue;
       DotPath(p);
     }
@@ -200,23 +200,33 @@ class Painter {
     cairo_set_line_width(cr_, 1);
     cairo_set_line_cap(cr_, CAIRO_LINE_CAP_BUTT);
     for (double x : layout_.x_ticks) {
-      const double u = Crisp(f.ToPixel(x, 0).x());
+      const double u = Crisp(f.ToPixel(x, f.y_min).x());
       cairo_move_to(cr_, u, f.bottom + 0.5);
       cairo_line_to(cr_, u, f.bottom + 0.5 + internal::kTickLength);
     }
     for (double y : layout_.y_ticks) {
-      const double v = Crisp(f.ToPixel(0, y).y());
+      const double v = Crisp(f.ToPixel(f.x_min, y).y());
       cairo_move_to(cr_, f.left - 0.5, v);
       cairo_line_to(cr_, f.left - 0.5 - internal::kTickLength, v);
     }
+    for (double x : layout_.x_minor) {
+      const double u = Crisp(f.ToPixel(x, f.y_min).x());
+      cairo_move_to(cr_, u, f.bottom + 0.5);
+      cairo_line_to(cr_, u, f.bottom + 0.5 + 0.6 * internal::kTickLength);
+    }
+    for (double y : layout_.y_minor) {
+      const double v = Crisp(f.ToPixel(f.x_min, y).y());
+      cairo_move_to(cr_, f.left - 0.5, v);
+      cairo_line_to(cr_, f.left - 0.5 - 0.6 * internal::kTickLength, v);
+    }
     cairo_stroke(cr_);
-    for (double x : layout_.x_ticks) {
-      Text(internal::DisplayTickLabel(x, layout_.x_step), internal::kTickFont, f.ToPixel(x, 0).x(),
+    for (size_t i = 0; i < layout_.x_ticks.size(); ++i) {
+      Text(layout_.x_labels[i], internal::kTickFont, f.ToPixel(layout_.x_ticks[i], f.y_min).x(),
            f.bottom + internal::kTickLength + 4 + digits.digit_height, Align::kCenter);
     }
-    for (double y : layout_.y_ticks) {
-      Text(internal::DisplayTickLabel(y, layout_.y_step), internal::kTickFont,
-           f.left - internal::kTickLength - 4, f.ToPixel(0, y).y() + 0.5 * digits.digit_height, Align::kRight);
+    for (size_t i = 0; i < layout_.y_ticks.size(); ++i) {
+      Text(layout_.y_labels[i], internal::kTickFont, f.left - internal::kTickLength - 4,
+           f.ToPixel(f.x_min, layout_.y_ticks[i]).y() + 0.5 * digits.digit_height, Align::kRight);
     }
   }
 
