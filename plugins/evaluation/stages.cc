@@ -145,15 +145,20 @@ class LocalizationEval : public Stage<EvalOptions> {
       per_query.rows.push_back({e.image, e.device, e.group, e.split, e.localized ? "1" : "0",
                                 e.localized ? FormatDouble(e.position_m) : "",
                                 e.localized ? FormatDouble(e.rotation_deg) : ""});
-    // Figure 7: one curve per bucket; curve.csv keeps them for eval/table.
-    std::vector<plot::Series> curves;
+    // Figure 7: one curve per bucket in curve.csv (eval/table reads all/all);
+    // the figure shows all queries, each group and each split (not every
+    // group x split: that many curves would repeat colours).
+    std::vector<plot::Series> curves, shown;
     Table curve_table;
     curve_table.header = {"group", "split", "position_m", "angle_deg", "recall_percent"};
     for (const auto& [key, list] : buckets) {
-      const std::string label = key.first == "all" && key.second == "all"
-                                    ? o.method
-                                    : key.first + "/" + key.second;
+      // "method", "industrial" (a group, all splits), "test" (a split), "industrial/test".
+      const std::string label = key.first == "all" && key.second == "all" ? o.method
+                                : key.second == "all"                      ? key.first
+                                : key.first == "all"                       ? key.second
+                                                                           : key.first + "/" + key.second;
       curves.push_back(RecallCurve(list, label, o.curve_max_m, kAnglePerMetre, 150, kRecallDecades));
+      if (key.first == "all" || key.second == "all") shown.push_back(curves.back());
       for (size_t i = 0; i < curves.back().x.size(); ++i)
         curve_table.rows.push_back({key.first, key.second, FormatDouble(curves.back().x[i]),
                                     FormatDouble(kAnglePerMetre * curves.back().x[i]),
@@ -165,7 +170,7 @@ class LocalizationEval : public Stage<EvalOptions> {
     WriteFileAtomic(out / "summary.tex", ToLatex(summary));
     WriteFileAtomic(out / "per_query.csv", ToCsv(per_query));
     WriteFileAtomic(out / "curve.csv", ToCsv(curve_table));
-    const plot::Figure figure = RecallFigure(curves, o.method, o.curve_max_m, kAnglePerMetre);
+    const plot::Figure figure = RecallFigure(shown, o.method, o.curve_max_m, kAnglePerMetre);
     plot::WriteFigure(figure, (out / "curve.svg").string());
     plot::WriteFigure(figure, (out / "curve.png").string());
     ctx.Info(ToMarkdown(summary));
