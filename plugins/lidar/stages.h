@@ -149,23 +149,35 @@ struct PoseGraphSlamOptions {
   double loop_overlap = 0.6;        // inlier fraction of the precise check
   int loop_stride = 2;              // test loops from every n-th keyframe
   int loop_yaw_hypotheses = 12;     // headings tried when joining two sequences
-  // Joining a sequence (join_consensus.h): seed loops from the keyframes
-  // nearest its start (all headings), then each hypothesis of its frame is
-  // verified by the loops it predicts elsewhere; joined when enough loops at
-  // distinct keyframes agree and no disagreeing cluster comes close.
+  // Joining parts of the map (sequences, or groups already joined; join.h):
+  // loops between them come from seeds (keyframes near a sequence's start,
+  // every heading: sequences often start at one spot) and from place
+  // recognition (Scan Context) over the whole trajectories; each distinct
+  // frame they suggest is judged by the whole overlap of the two maps (the
+  // structure of one in the other's free space); a join is made when one
+  // frame explains the overlap and no other comes close, else refused.
   int join_seeds = 8;               // seed keyframes (every loop_stride-th from the start)
   double join_seed_radius = 8;      // m from the sequence's start, seed keyframes
-  // Largest mean residual of the seeds' rough check (m): looser than
-  // loop_rough_error, as a wrong seed loop is rejected by the consensus.
+  // Largest mean residual of the join loops' rough check (m): looser than
+  // loop_rough_error, as the overlap evidence judges the hypotheses.
   double join_rough_error = 1.0;
-  int join_hypotheses = 4;          // frame hypotheses verified per attempt
-  int join_verify = 12;             // predicted loops tested per hypothesis
-  int join_min_support = 3;         // distinct keyframes of the sequence whose loops agree
-  int join_min_verified = 3;        // ... of them with loops found where a hypothesis predicted them
-  double join_min_verified_fraction = 0.25;  // of the predicted loops tested for the winning hypothesis
-  double join_max_translation = 1.0;   // m, agreement of two hypotheses at their keyframes
-  double join_max_rotation = 5;        // deg, likewise
-  double join_max_rival_ratio = 0.5;   // best disagreeing cluster's verified support / the winner's
+  int join_place_candidates = 10;   // keyframes of A ranked by ring key per keyframe of B
+  int join_place_matches = 2;       // ... of which the best by Scan Context distance are checked
+  double join_place_max_distance = 0.35;  // largest Scan Context distance of a checked place
+  int join_verify = 12;             // loops predicted by the winning frame along B, tested
+  int join_min_support = 3;         // distinct keyframes of B whose loops agree with the winning frame
+  int join_min_verified = 2;        // ... found where the frame predicted them
+  double join_max_translation = 1.0;   // m, two loops suggest one frame: their keyframes within this ...
+  double join_max_rotation = 5;        // deg, ... and their rotations within this
+  double join_max_conflict = 0.2;      // fraction of shared structure in the other map's free space
+  double join_min_overlap = 20;        // m of structure seen by both maps (cells x cell size)
+  double join_rival_conflict_margin = 0.1;  // a distinct frame with a conflict this close to the winner's ...
+  double join_rival_overlap = 0.5;          // ... and this fraction of its overlap makes the join ambiguous
+  double join_free_space_margin = 0.3;      // m: structure this close to the other map's returns agrees
+  // A part that cannot be joined: "error" stops the run with the evidence and
+  // how to give initial_poses; "separate" keeps it out of the merged frame
+  // (trajectories.txt holds the first sequence's part, joins.csv says why).
+  std::string unjoined = "error";
   std::string loss = "cauchy";      // robust loss of loop edges
   double loss_scale = 1.0;          // in whitened residual units
   double sigma_translation = 0.01;  // m, registration edges
@@ -189,6 +201,9 @@ struct PoseGraphSlamOptions {
   bool Check(std::string* why) const;
   WheelParams Wheels() const { return {wheel_radius, wheel_axle, pulses_per_rev}; }
 };
+
+// One initial_poses entry, "sequence x y yaw_deg": false when malformed.
+bool ParseInitialPose(const std::string& entry, std::string* sequence, Pose* start);
 
 class PoseGraphSlam : public Stage<PoseGraphSlamOptions> {
  public:
