@@ -12,8 +12,9 @@
 //
 // What the figure shows: a light grid at "nice" ticks (1, 2, 5 x 10^k), tick
 // labels, axis labels, a title, and a legend of the labelled series, placed
-// in the corner or edge of the plot area that hides the least data. Output is deterministic: the same figure gives the same bytes
-// (on the same Cairo, libpng and font), so caches and tests stay stable.
+// in the corner or edge of the plot area that hides the least data. Output
+// is deterministic: the same figure gives the same bytes (on the same Cairo,
+// libpng and font), so caches and tests stay stable.
 #ifndef LOCFORGE_PLOT_H_
 #define LOCFORGE_PLOT_H_
 
@@ -62,7 +63,7 @@ struct Figure {
   double y_min = std::numeric_limits<double>::quiet_NaN();
   double y_max = std::numeric_limits<double>::quiet_NaN();
   // Logarithmic axes, for values spread over decades (error thresholds from
-  // 1 cm to 1 m): ticks at 1 (2, 5) x 10^k; points <= 0 are not drawn. Not
+  // 1 mm to 1 m): ticks at 1 (2, 5) x 10^k; points <= 0 are not drawn. Not
   // with equal_aspect.
   bool x_log = false;
   bool y_log = false;
