@@ -203,6 +203,7 @@ bool Slam::TryJoin(int A, int B, int round) {
   JoinDecisionOptions jo;
   jo.max_conflict = o_.join_max_conflict;
   jo.min_agreeing = std::max<int64_t>(1, std::llround(o_.join_min_overlap / fa.options().cell_m));
+  jo.rival_conflict_ratio = o_.join_rival_conflict_ratio;
   jo.rival_conflict_margin = o_.join_rival_conflict_margin;
   jo.rival_overlap = o_.join_rival_overlap;
   JoinDecision d = DecideJoin(hypotheses, jo);
