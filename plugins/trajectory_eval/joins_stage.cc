@@ -3,6 +3,7 @@
 // wrong or refused (not in the merged frame), its error after ONE rigid
 // alignment of the whole recording, its own-alignment error (the drift left
 // inside it), RPE over 1 m and its scale against the truth.
+#include <cmath>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -93,7 +94,19 @@ struct SequenceResult {
   size_t poses = 0;
   Statistics whole_t, whole_r, own_t, own_r, rpe_t, rpe_r;
   double scale = 1, offset_t = 0, offset_r = 0;
+  double yaw_bias_deg = 0;  // mean signed heading error in the whole alignment
 };
+
+// Mean signed heading (yaw) of est against ref, wrapped to (-180, 180].
+double YawBiasDeg(const Trajectory& ref, const Trajectory& est) {
+  double sum = 0;
+  for (size_t i = 0; i < ref.size(); ++i) {
+    const Eigen::Matrix3d R = ref[i].T_world_device.q.toRotationMatrix().transpose() *
+                              est[i].T_world_device.q.toRotationMatrix();
+    sum += std::atan2(R(1, 0), R(0, 0));
+  }
+  return ref.empty() ? 0.0 : sum / static_cast<double>(ref.size()) * 180 / M_PI;
+}
 
 }  // namespace
 
@@ -143,6 +156,7 @@ void JoinsEval::Run(RunContext& ctx) {
     const Trajectory& es = it->second.second;
     r.poses = es.size();
     const Errors in_whole = AbsolutePoseErrors(rs, Aligned(es, whole));
+    r.yaw_bias_deg = YawBiasDeg(rs, Aligned(es, whole));
     r.whole_t = ComputeStatistics(in_whole.translation);
     r.whole_r = ComputeStatistics(in_whole.rotation);
     const Similarity own = RigidFit(rs, es);
@@ -168,17 +182,18 @@ void JoinsEval::Run(RunContext& ctx) {
   md.precision(4);
   json.precision(8);
   csv << "sequence,status,verdict,poses,ate_whole_m,rot_whole_deg,ate_own_m,rot_own_deg,rpe_1m_m,rpe_1m_deg,"
-         "scale,offset_to_first_m,offset_to_first_deg\n";
+         "yaw_bias_deg,scale,offset_to_first_m,offset_to_first_deg\n";
   md << "# Joins against the truth\n\n" << estimate.size() << " poses of `" << o.device << "`; one rigid alignment "
      << "of the whole recording: ATE " << wt.rmse * 100 << " cm RMS, " << wr.rmse << " deg RMS.\n\n"
-     << "| sequence | status | verdict | ATE whole (cm) | rot whole (deg) | ATE own (cm) | RPE 1 m (cm) | scale |\n"
-     << "|---|---|---|---|---|---|---|---|\n";
+     << "| sequence | status | verdict | ATE whole (cm) | rot whole (deg) | heading bias (deg) | ATE own (cm) | "
+        "RPE 1 m (cm) | scale |\n"
+     << "|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : results) {
     csv << r.name << "," << r.status << "," << r.verdict << "," << r.poses << "," << r.whole_t.rmse << ","
         << r.whole_r.rmse << "," << r.own_t.rmse << "," << r.own_r.rmse << "," << r.rpe_t.rmse << "," << r.rpe_r.rmse
-        << "," << r.scale << "," << r.offset_t << "," << r.offset_r << "\n";
+        << "," << r.yaw_bias_deg << "," << r.scale << "," << r.offset_t << "," << r.offset_r << "\n";
     md << "| " << r.name << " | " << r.status << " | " << r.verdict << " | " << r.whole_t.rmse * 100 << " | "
-       << r.whole_r.rmse << " | " << r.own_t.rmse * 100 << " | " << r.rpe_t.rmse * 100 << " | " << r.scale << " |\n";
+       << r.whole_r.rmse << " | " << r.yaw_bias_deg << " | " << r.own_t.rmse * 100 << " | " << r.rpe_t.rmse * 100 << " | " << r.scale << " |\n";
   }
   const bool fully = refused == 0 && wrong == 0;
   json << "{\n  \"sequences\": " << results.size() << ",\n  \"right\": " << right << ",\n  \"wrong\": " << wrong
