@@ -239,9 +239,12 @@ void JoinsEval::Run(RunContext& ctx) {
   WriteFileAtomic(out / "joins_eval.csv", csv.str());
   WriteFileAtomic(out / "report.md", md.str());
   WriteFileAtomic(out / "summary.json", json.str());
-  ctx.Info("eval/joins: " + std::to_string(right) + " right, " + std::to_string(wrong) + " wrong, " +
-           std::to_string(refused) + " refused; whole recording ATE " + kapture::FormatDouble(wt.rmse * 100) + " cm, " +
-           kapture::FormatDouble(wr.rmse) + " deg RMS");
+  std::ostringstream line;
+  line.precision(3);
+  line << "eval/joins: " << right << " right, " << wrong << " wrong, " << refused
+       << " refused; whole recording ATE " << wt.rmse * 100 << " cm, " << wr.rmse << " deg RMS";
+  if (camera_devices > 0) line << "; cameras " << ct.rmse * 100 << " cm, " << cr.rmse << " deg";
+  ctx.Info(line.str());
 }
 
 }  // namespace locforge::eval
