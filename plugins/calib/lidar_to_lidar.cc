@@ -12,7 +12,7 @@
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/registration.h"
-#include "stages.h"
+#include "lidar_stages.h"
 
 namespace locforge::lidar {
 

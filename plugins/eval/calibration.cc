@@ -4,12 +4,43 @@
 #include <cmath>
 #include <regex>
 
-#include "common.h"
-#include "stages.h"
+#include "locforge/plugin.h"
+#include "sfm_gt_common.h"
 #include "locforge/kapture/io.h"
 
 namespace locforge::sfm_gt {
 namespace {
+
+struct CalibrationEvalOptions {
+  std::string reference;  // Kapture with the true sensors, rigs and camera poses.
+  std::vector<std::string> labels;  // One per estimate; empty: node names.
+  std::vector<std::string> groups = {"industrial=ind_.*", "smartphone=phone_.*"};
+  std::string alignment = "se3";
+  std::string title = "Camera poses and calibration against the reference";
+  static void Declare(ParamSchema<CalibrationEvalOptions>& s) {
+    using O = CalibrationEvalOptions;
+    s.Add("reference", &O::reference, "kapture with the true sensors.txt, rigs.txt and camera poses (the simulator's output)").Path().Required();
+    s.Add("labels", &O::labels, "row label of each estimate (default: node names)");
+    s.Add("groups", &O::groups, "camera groups NAME=REGEX on sensor ids");
+    s.Add("alignment", &O::alignment, "alignment of the estimated poses: none or one SE(3) per estimate").Choices({"none", "se3"});
+    s.Add("title", &O::title, "heading of calibration.md");
+  }
+};
+
+class CalibrationEvalStage : public Stage<CalibrationEvalOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta = {"eval", "calibration",
+            "Camera pose RMS errors, focal errors and camera rotation errors of one or more "
+            "estimates against a reference, per camera group (one table row per estimate)",
+            {{"estimates", "kapture.trajectories", "refined sensors, rigs, trajectories", LF_PORT_MULTIPLE}},
+            {{"report", "report", "calibration.md, calibration.csv, per_camera.csv"}}};
+    meta.version = "1.0.0";
+    return meta;
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
 
 struct Accumulator {
   double sum_sq = 0, max = 0;
@@ -203,5 +234,7 @@ void CalibrationEvalStage::Run(RunContext& ctx) {
   WriteFileAtomic(out / "per_camera.csv", per_camera.Csv());
   ctx.Info("\n" + table.Markdown());
 }
+
+LOCFORGE_EXPORT_STAGE(AddCalibrationEval, CalibrationEvalStage)
 
 }  // namespace locforge::sfm_gt

@@ -36,9 +36,11 @@ struct TrajectoryEvalOptions {
 class TrajectoryEval : public Stage<TrajectoryEvalOptions> {
  public:
   static StageMeta Meta() {
-    return {"eval", "trajectory", "ATE and RPE (translation, rotation) against a reference, evo-compatible",
+    StageMeta meta = {"eval", "trajectory", "ATE and RPE (translation, rotation) against a reference, evo-compatible",
             {{"estimate", "kapture.trajectories", "Estimated trajectory (sensors/trajectories.txt)"}},
             {{"report", "report", "report.md, metrics.csv, metrics.json, estimate/reference .tum and .kitti"}}};
+    meta.version = "0.1.0";
+    return meta;
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override;
@@ -103,7 +105,6 @@ void TrajectoryEval::Run(RunContext& ctx) {
            FormatDouble(rows[1].second.rmse) + " deg over " + std::to_string(estimate.size()) + " poses");
 }
 
-}  // namespace locforge::eval
+LOCFORGE_EXPORT_STAGE(AddTrajectoryEval, TrajectoryEval)
 
-LOCFORGE_PLUGIN("trajectory_eval", "0.1.0", "Trajectory evaluation (ATE/RPE, evo-compatible)",
-                locforge::eval::TrajectoryEval)
+}  // namespace locforge::eval

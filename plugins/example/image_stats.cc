@@ -7,7 +7,7 @@
 #include <sstream>
 
 #include "locforge/fs.h"
-#include "stages.h"
+#include "example_stages.h"
 
 namespace locforge::examples {
 

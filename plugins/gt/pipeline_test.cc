@@ -3,13 +3,13 @@
 // two-view verification, spline bundle adjustment loop) started from a
 // calibration perturbed away from the truth (3 % focal, 1.5 deg rotation),
 // + eval/calibration of the starting and the refined poses/calibration
-// against the simulator's truth. Measured numbers: plugins/sfm_gt/README.md.
+// against the simulator's truth. Measured numbers: plugins/gt/README.md.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <sstream>
 
-#include "../../tests/testing/testing.h"
+#include "testing.h"
 #include "locforge/fs.h"
 
 namespace locforge::sfm_gt {
@@ -68,12 +68,8 @@ TEST(SfmGtPipeline, TinyRecordingRefinedFromPerturbedCalibration) {
   EXPECT_GT(points, 500);
   EXPECT_LT(reproj, 1.0);
   // Refined poses closer to the truth than the LiDAR poses (with the
-  // perturbed extrinsics), focal lengths and camera rotations recovered.
-  // Measured (session 8 defaults: 0.3 s knots, 3 mm image-to-spline, clock
-  // offsets, wheeled-base kinematics, LiDAR final registration pass):
-  // positions 1.34 -> 0.43 cm, rotations 1.47 -> 0.068 deg, focal 3 ->
-  // 0.082 %, camera rotations 1.5 -> 0.243 deg (a common roll that this one
-  // straight sequence leaves to the LiDAR; 0.113 deg with the session-7 LiDAR).
+  // perturbed extrinsics), focal lengths and camera rotations recovered
+  // (measured figures: plugins/gt/README.md).
   EXPECT_LT(refined.at("position RMS (cm)"), 0.6 * start.at("position RMS (cm)"));
   EXPECT_LT(refined.at("rotation RMS (deg)"), 0.2 * start.at("rotation RMS (deg)"));
   EXPECT_NEAR(start.at("focal error RMS (%)"), 3.0, 1e-6);

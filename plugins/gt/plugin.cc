@@ -1,14 +1,11 @@
-#include "stages.h"
+// The stages of kind gt; each stage's version keys its cached results.
+#include "locforge/plugin.h"
 
-#ifdef LOCFORGE_SFM_GT_HAVE_BA
-LOCFORGE_PLUGIN("sfm_gt", "1.0.0",
-                "SfM half of the ground truth: calibration perturbation, camera dataset, "
-                "spline bundle adjustment outer loop, calibration evaluation",
-                locforge::sfm_gt::PerturbStage, locforge::sfm_gt::ImagesStage,
-                locforge::sfm_gt::SplineBAStage, locforge::sfm_gt::CalibrationEvalStage)
-#else
-LOCFORGE_PLUGIN("sfm_gt", "1.0.0",
-                "SfM half of the ground truth (built without the spline bundle adjuster)",
-                locforge::sfm_gt::PerturbStage, locforge::sfm_gt::ImagesStage,
-                locforge::sfm_gt::CalibrationEvalStage)
-#endif
+namespace locforge::sfm_gt {
+LOCFORGE_DECLARE_STAGE(AddImages);
+LOCFORGE_DECLARE_STAGE(AddSplineBA);
+}  // namespace locforge::sfm_gt
+
+LOCFORGE_PLUGIN("gt", "1.0.0", "SfM half of the ground truth: images with LiDAR poses, spline bundle adjustment outer loop",
+                locforge::Exported<locforge::sfm_gt::AddImages>,
+                locforge::Exported<locforge::sfm_gt::AddSplineBA>)

@@ -81,7 +81,7 @@ std::string FeatureTypeOf(const kp::Kapture& k, kp::FeatureKind kind, const std:
 class PnPLocalizer : public PerItemStage<PnPOptions> {
  public:
   static StageMeta Meta() {
-    return {"localizer",
+    StageMeta meta = {"localizer",
             "pnp",
             "P3P/EPnP LO-RANSAC + Cauchy-robust Ceres refinement per query (fixed intrinsics, "
             "optional rig queries); failed queries are listed in failures.txt, never guessed",
@@ -91,6 +91,8 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
              {"matches", "kapture.matches", "query-to-map matches"}},
             {{"trajectories", "kapture.trajectories",
               "estimated query poses (+ failures.txt, localization_stats.csv)"}}};
+    meta.version = "1.1.0";
+    return meta;
   }
   using PerItemStage::PerItemStage;
 
@@ -286,7 +288,6 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
 };
 
 }  // namespace
-}  // namespace locforge::localization
+LOCFORGE_EXPORT_STAGE(AddPnP, PnPLocalizer)
 
-LOCFORGE_PLUGIN("localization", "1.1.0", "Structure-based localization: in-process PnP solver",
-                locforge::localization::PnPLocalizer)
+}  // namespace locforge::localization

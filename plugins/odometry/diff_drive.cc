@@ -3,7 +3,7 @@
 
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
-#include "stages.h"
+#include "lidar_stages.h"
 
 namespace locforge::lidar {
 

@@ -13,17 +13,58 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/params.h"
 #include "locforge/plugin.h"
-#include "colmap_db.h"
-#include "vocab_tree.h"
+#include "locforge/colmap/kapture_database.h"
 
 namespace locforge::colmap_stages {
+
+using namespace locforge::colmap;
+
+struct VocabTreeOptions {
+  std::string vocab_tree;         // Supplied tree (.bin); "" = build one on the map.
+  int num_visual_words = 4096;    // vocab_tree_builder words when building.
+  int num_images = 100;           // VocabTreeMatching.num_images (neighbours per image).
+  int max_num_features = 8192;    // SiftExtraction.max_num_features.
+  double timeout_s = 0;           // Kill a colmap step after this many seconds (0: never).
+  static void Declare(ParamSchema<VocabTreeOptions>& s) {
+    s.Add("vocab_tree", &VocabTreeOptions::vocab_tree, "supplied vocabulary tree file; empty = build on the map");
+    s.Add("num_visual_words", &VocabTreeOptions::num_visual_words, "vocab_tree_builder --num_visual_words").Min(16);
+    s.Add("num_images", &VocabTreeOptions::num_images, "VocabTreeMatching.num_images").Min(1);
+    s.Add("max_num_features", &VocabTreeOptions::max_num_features, "SiftExtraction.max_num_features").Min(16);
+    s.Add("timeout_s", &VocabTreeOptions::timeout_s, "kill a colmap step after this many seconds (0: never)").Min(0).NoCacheKey();
+  }
+};
+
+class VocabTreeStage : public Stage<VocabTreeOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta = {"pipeline",
+            "colmap_vocab_tree",
+            "Classic COLMAP baseline: SIFT feature_extractor, vocab_tree_builder (or a supplied "
+            "tree), vocab_tree_matcher, point_triangulator on the map poses, image_registrator",
+            {{"map", "kapture.dataset", "map images (records_data) with poses"},
+             {"query", "kapture.dataset", "query images (records_data)"}},
+            {{"trajectories", "kapture.trajectories", "registered query poses (+ failures.txt)"}},
+            LF_STAGE_NONDETERMINISTIC};
+    meta.version = "1.1.0";
+    return meta;
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+
+ private:
+  void Run(RunContext& ctx, const std::vector<std::string>& args, const std::string& tag);
+  std::vector<std::string> Extract(RunContext& ctx, const fs::path& db, const fs::path& images,
+                                   const fs::path& list, const std::string& tag);
+  std::map<std::string, double> seconds_;
+};
+
 namespace {
 
 namespace kp = locforge::kapture;
 
 // Adds cameras (from sensors.txt, so intrinsics are the dataset's) and
 // images (no keypoints yet); feature_extractor then fills the features.
-std::vector<kp::DataRecord> AddDatasetImages(const kp::Kapture& k, colmap::Database* db,
+std::vector<kp::DataRecord> AddDatasetImages(const kp::Kapture& k, Database* db,
                                              const fs::path& list_file) {
   auto records = k.ReadDataRecords(kp::kSensorCamera);
   std::map<std::string, colmap::CameraId> cameras;
@@ -79,7 +120,7 @@ void VocabTreeStage::Run(RunContext& ctx) {
   const fs::path map_db = out / "map.db";
   std::vector<kp::DataRecord> map_records;
   {
-    colmap::Database db(map_db, colmap::Database::Mode::kCreate);
+    Database db(map_db, Database::Mode::kCreate);
     map_records = AddDatasetImages(map, &db, out / "map_images.txt");
   }
   Extract(ctx, map_db, map.root() / kp::layout::kRecordsData, out / "map_images.txt", "map");
@@ -100,7 +141,7 @@ void VocabTreeStage::Run(RunContext& ctx) {
   // Fixed-pose model with COLMAP's ids and keypoints.
   colmap::Reconstruction input;
   {
-    colmap::Database db(map_db, colmap::Database::Mode::kReadOnly);
+    Database db(map_db, Database::Mode::kReadOnly);
     for (const auto& c : db.ReadCameras()) input.cameras.push_back({c.camera_id, c.camera});
     std::map<std::string, const kp::DataRecord*> by_name;
     for (const auto& r : map_records) by_name[r.path] = &r;
@@ -136,7 +177,7 @@ void VocabTreeStage::Run(RunContext& ctx) {
   fs::copy_file(map_db, db_path, fs::copy_options::overwrite_existing);
   std::vector<kp::DataRecord> query_records;
   {
-    colmap::Database db(db_path, colmap::Database::Mode::kReadWrite);
+    Database db(db_path, Database::Mode::kReadWrite);
     query_records = AddDatasetImages(query, &db, out / "query_images.txt");
   }
   Extract(ctx, db_path, query.root() / kp::layout::kRecordsData, out / "query_images.txt", "query");
@@ -159,5 +200,7 @@ void VocabTreeStage::Run(RunContext& ctx) {
   ctx.Info("vocab-tree baseline registered " + std::to_string(ok) + " of " +
            std::to_string(query_records.size()) + " queries");
 }
+
+LOCFORGE_EXPORT_STAGE(AddVocabTree, VocabTreeStage)
 
 }  // namespace locforge::colmap_stages

@@ -26,9 +26,7 @@ struct GicpOptions {
   double covariance_epsilon = 1e-3;          // Normal-direction eigenvalue of the plane prior.
   // none | huber | cauchy. Cauchy by default: points without a true
   // counterpart (people walking through an indoor scan) otherwise pull every
-  // registration toward zero motion; on the simulator's `small` 0.2.0 the
-  // LiDAR map was 0.27 % too small without it, 0.10 % with it
-  // (plugins/lidar/README.md, row "small 0.2.0").
+  // registration toward zero motion (figures: plugins/common/lidar/README.md).
   std::string robust_kernel = "cauchy";
   double kernel_width = 0.25;                // In units of the Mahalanobis distance.
   std::string optimizer = "gauss_newton";    // gauss_newton | levenberg_marquardt.
@@ -72,8 +70,10 @@ RobustKernel KernelOf(const std::string& name) {
 class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
  public:
   static StageMeta Meta() {
-    return {"registration", "gicp",
+    StageMeta meta = {"registration", "gicp",
             "Generalized-ICP (Segal 2009), Eigen + OpenMP, small_gicp-style", {}, {}};
+    meta.version = "1.1.0";
+    return meta;
   }
   explicit Gicp(GicpOptions o) : RegistrationComponent(std::move(o)) {}
 
@@ -137,7 +137,6 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
 };
 
 }  // namespace
-}  // namespace locforge::gicp
+LOCFORGE_EXPORT_STAGE(AddGicp, Gicp)
 
-LOCFORGE_PLUGIN("registration_gicp", "1.1.0",
-                "Our Generalized-ICP registration back-end (Eigen, OpenMP)", locforge::gicp::Gicp)
+}  // namespace locforge::gicp

@@ -38,8 +38,10 @@ Cloud::Ptr WithNormals(const gicp::Points& points, const PointCloud& original, d
 class IcpPlane : public RegistrationComponent<IcpPlane, PclOptions> {
  public:
   static StageMeta Meta() {
-    return {"registration", "icp_plane", "PCL point-to-plane ICP (normals estimated if absent)",
+    StageMeta meta = {"registration", "icp_plane", "PCL point-to-plane ICP (normals estimated if absent)",
             {}, {}};
+    meta.version = "1.0.0";
+    return meta;
   }
   explicit IcpPlane(PclOptions o) : RegistrationComponent(std::move(o)) {}
 
@@ -70,7 +72,6 @@ class IcpPlane : public RegistrationComponent<IcpPlane, PclOptions> {
 };
 
 }  // namespace
-}  // namespace locforge::pclreg
+LOCFORGE_EXPORT_STAGE(AddIcpPlane, IcpPlane)
 
-LOCFORGE_PLUGIN("registration_icp_plane", "1.0.0", "PCL point-to-plane ICP back-end",
-                locforge::pclreg::IcpPlane)
+}  // namespace locforge::pclreg

@@ -9,7 +9,7 @@
 #include <regex>
 #include <sstream>
 
-#include "../../tests/testing/testing.h"
+#include "testing.h"
 #include "cloud.h"
 #include "locforge/fs.h"
 #include "locforge/kapture/kapture.h"

@@ -16,7 +16,7 @@
 #include "locforge/registration.h"
 #include "plot.h"
 #include "pose_graph.h"
-#include "stages.h"
+#include "lidar_stages.h"
 
 namespace locforge::lidar {
 

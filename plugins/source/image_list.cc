@@ -6,7 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "locforge/fs.h"
-#include "stages.h"
+#include "example_stages.h"
 
 namespace locforge::examples {
 

@@ -1,6 +1,8 @@
-// The example stages. Declared here, defined one per file, registered in plugin.cc.
-#ifndef LOCFORGE_PLUGINS_EXAMPLES_STAGES_H_
-#define LOCFORGE_PLUGINS_EXAMPLES_STAGES_H_
+// The example stages (source/synthetic_images, source/image_list,
+// example/image_stats): declared here, defined one per file in their kind's
+// folder, listed by that kind's plugin.cc.
+#ifndef LOCFORGE_PLUGINS_COMMON_EXAMPLES_EXAMPLE_STAGES_H_
+#define LOCFORGE_PLUGINS_COMMON_EXAMPLES_EXAMPLE_STAGES_H_
 
 #include <cstdint>
 #include <map>
@@ -33,10 +35,12 @@ struct SyntheticImagesOptions {
 class SyntheticImages : public Stage<SyntheticImagesOptions> {
  public:
   static StageMeta Meta() {
-    return {"source", "synthetic_images",
+    StageMeta meta = {"source", "synthetic_images",
             "Generates deterministic procedural textured images as a kapture dataset",
             {},
             {{"images", "kapture.dataset", "One PINHOLE camera and its image records"}}};
+    meta.version = "1.0.0";
+    return meta;
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override;
@@ -63,10 +67,12 @@ struct ImageListOptions {
 class ImageList : public Stage<ImageListOptions> {
  public:
   static StageMeta Meta() {
-    return {"source", "image_list",
+    StageMeta meta = {"source", "image_list",
             "Imports a folder of images as a kapture dataset (one camera per image size)",
             {},
             {{"images", "kapture.dataset", "Cameras and image records of the folder"}}};
+    meta.version = "1.0.0";
+    return meta;
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override;
@@ -85,10 +91,12 @@ struct ImageStatsOptions {
 class ImageStats : public PerItemStage<ImageStatsOptions> {
  public:
   static StageMeta Meta() {
-    return {"example", "image_stats",
+    StageMeta meta = {"example", "image_stats",
             "Per-image intensity mean, std, min, max and histogram, plus a CSV summary",
             {{"images", "kapture.dataset", "Dataset whose camera images are measured"}},
             {{"stats", "report", "stats/<image>.json per image and stats.csv"}}};
+    meta.version = "1.0.0";
+    return meta;
   }
   using PerItemStage::PerItemStage;
   std::vector<std::string> ListItems(RunContext& ctx) override;
@@ -107,4 +115,4 @@ class ImageStats : public PerItemStage<ImageStatsOptions> {
 
 }  // namespace locforge::examples
 
-#endif  // LOCFORGE_PLUGINS_EXAMPLES_STAGES_H_
+#endif  // LOCFORGE_PLUGINS_COMMON_EXAMPLES_EXAMPLE_STAGES_H_

@@ -239,26 +239,15 @@ Sample MakeSample(const fs::path& shared, const fs::path& tmp, int max_pairs) {
   return s;
 }
 
-runtime::RunResult RunStage(const runtime::Registry& registry, const std::string& id,
-                            std::vector<std::pair<std::string, std::string>> params,
-                            std::vector<runtime::InputArtifact> inputs, const fs::path& out) {
-  const auto* stage = registry.Find(id);
-  if (!stage) throw Error("no stage " + id);
-  runtime::StageInstance instance(*stage, runtime::CheckStageParams(*stage, params));
-  runtime::RunOptions run;
-  run.workspace = out.parent_path();
-  run.output_dir = out;
-  run.inputs = std::move(inputs);
-  run.threads = 2;
-  return instance.Run(run);
-}
+using testkit::RunStage;
 
 TEST(MatchingStages, MatchAndVerifyTheSampleR2D2Features) {
   LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
   const fs::path tmp = locforge::testing::MakeTempDir("matching_stages");
   const Sample s = MakeSample(shared, tmp, 1000);
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_MATCHING_PLUGIN_FILE));
+  for (const char* f : {LOCFORGE_MATCHES_PLUGIN_FILE, LOCFORGE_VERIFY_PLUGIN_FILE})
+    ASSERT_TRUE(registry.LoadFile(f));
   const runtime::InputArtifact features{"features", "kapture.local_features", s.features};
   const runtime::InputArtifact map{"images", "kapture.dataset", shared / "mapping"};
   const runtime::InputArtifact query{"query", "kapture.dataset", shared / "query"};
@@ -350,7 +339,8 @@ TEST(MatchingPlugin, RunsDeterministically) {
   const fs::path tmp = locforge::testing::MakeTempDir("matching_det");
   const Sample s = MakeSample(shared, tmp, 12);
   runtime::Registry registry;
-  ASSERT_TRUE(testkit::CheckLoads(registry, LOCFORGE_MATCHING_PLUGIN_FILE).ok());
+  for (const char* f : {LOCFORGE_MATCHES_PLUGIN_FILE, LOCFORGE_VERIFY_PLUGIN_FILE})
+    ASSERT_TRUE(testkit::CheckLoads(registry, f).ok());
   const runtime::InputArtifact features{"features", "kapture.local_features", s.features};
   testkit::DeterminismCase c;
   c.stage_id = "matches/mutual_nn";
@@ -370,8 +360,10 @@ TEST(MatchingPlugin, RunsDeterministically) {
 }
 
 TEST(MatchingPlugin, Conforms) {
-  const auto report = testkit::CheckPlugin(LOCFORGE_MATCHING_PLUGIN_FILE);
-  EXPECT_TRUE(report.ok()) << report.ToString();
+  for (const char* f : {LOCFORGE_MATCHES_PLUGIN_FILE, LOCFORGE_VERIFY_PLUGIN_FILE}) {
+    const auto report = testkit::CheckPlugin(f);
+    EXPECT_TRUE(report.ok()) << report.ToString();
+  }
 }
 
 }  // namespace

@@ -8,7 +8,7 @@
 // Each extractor first runs once on a 96x96 image (model load, allocations),
 // then `repeat` timed runs per size and thread count.
 //
-// SIFT (plugins/features_sift, OpenCV, on the grey image, default options)
+// SIFT (plugins/features/sift, OpenCV, on the grey image, default options)
 // is the reference. R2D2 runs the real shipped models (r2d2_WASF_N16 and,
 // when beside it, faster2d2_WASF_N16). D2-Net, NetVLAD, AP-GeM and DELG run the
 // small architecture-faithful models of testdata/onnx_models.py (generated

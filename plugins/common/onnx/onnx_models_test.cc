@@ -343,26 +343,15 @@ TEST_F(OnnxModels, D2netMatchesTheAuthorsExtractionPortedToNumpy) {
 
 // ------------------------------------------------------- stages end to end
 
-void RunStage(const runtime::Registry& registry, const std::string& id,
-              std::vector<std::pair<std::string, std::string>> params,
-              std::vector<runtime::InputArtifact> inputs, const fs::path& out) {
-  const auto* stage = registry.Find(id);
-  if (!stage) throw Error("no stage " + id);
-  runtime::StageInstance instance(*stage, runtime::CheckStageParams(*stage, params));
-  runtime::RunOptions run;
-  run.workspace = out.parent_path();
-  run.output_dir = out;
-  run.inputs = std::move(inputs);
-  run.threads = 2;
-  instance.Run(run);
-}
+using testkit::RunStage;
 
 TEST_F(OnnxModels, StagesWriteKaptureFeaturesOfEveryImage) {
   LOCFORGE_ONNX_PYTHON_OR_SKIP();
   LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
   const fs::path tmp = locforge::testing::MakeTempDir("learned_stages");
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_LEARNED_PLUGIN_FILE));
+  for (const char* f : {LOCFORGE_FEATURES_PLUGIN_FILE, LOCFORGE_GLOBAL_PLUGIN_FILE})
+    ASSERT_TRUE(registry.LoadFile(f));
   const runtime::InputArtifact map{"images", "kapture.dataset", shared / "mapping"};
   RunStage(registry, "global/apgem", {{"model", Model("gem")}, {"max_side", "96"}}, {map}, tmp / "apgem");
   RunStage(registry, "features/d2net", {{"model", Model("d2net")}, {"max_edge", "160"}, {"top_k", "50"}},
@@ -389,9 +378,9 @@ TEST_F(OnnxModels, StagesWriteKaptureFeaturesOfEveryImage) {
       EXPECT_LE(kp.At(i, 1), 1080);
     }
   }
-  // pairs/retrieval (plugins/retrieval, when built) consumes global/apgem's
-  // output: each query's top-1 is the best cosine of our own descriptors.
-  const std::string retrieval_plugin = LOCFORGE_RETRIEVAL_PLUGIN_FILE;
+  // pairs/retrieval consumes global/apgem's output: each query's top-1 is the
+  // best cosine of our own descriptors.
+  const std::string retrieval_plugin = LOCFORGE_PAIRS_PLUGIN_FILE;
   if (!retrieval_plugin.empty()) {
     ASSERT_TRUE(registry.LoadFile(retrieval_plugin));
     const runtime::InputArtifact query{"images", "kapture.dataset", shared / "query"};
@@ -427,8 +416,10 @@ TEST_F(OnnxModels, StagesWriteKaptureFeaturesOfEveryImage) {
 }
 
 TEST(LearnedPlugin, Conforms) {
-  const auto report = testkit::CheckPlugin(LOCFORGE_LEARNED_PLUGIN_FILE);
-  EXPECT_TRUE(report.ok()) << report.ToString();
+  for (const char* f : {LOCFORGE_FEATURES_PLUGIN_FILE, LOCFORGE_GLOBAL_PLUGIN_FILE}) {
+    const auto report = testkit::CheckPlugin(f);
+    EXPECT_TRUE(report.ok()) << report.ToString();
+  }
 }
 
 }  // namespace

@@ -1,4 +1,6 @@
 #include "onnx_net.h"
+#include "locforge/kapture/kapture.h"
+#include <opencv2/imgcodecs.hpp>
 
 #include <map>
 #include <vector>
@@ -33,6 +35,17 @@ cv::Mat ToBlob(const cv::Mat& image) {
 
 double SecondsSince(const std::chrono::steady_clock::time_point& start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+cv::Mat ReadRgb(const std::filesystem::path& dataset, const std::string& image) {
+  const fs::path file = kapture::Kapture(dataset).ExistingRecordDataPath(image, kapture::layout::RecordsFile("camera"));
+  const cv::Mat bgr = cv::imread(file.string(), cv::IMREAD_COLOR);
+  if (bgr.empty())
+    throw InputError(kapture::layout::RecordsFile("camera"), 0, "image_path",
+                     "cannot read image '" + image + "' at " + file.string());
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  return rgb;
 }
 
 }  // namespace locforge::learned

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <opencv2/core.hpp>
 #include <opencv2/dnn.hpp>
+#include <filesystem>
 #include <string>
 
 namespace locforge::learned {
@@ -20,6 +21,10 @@ cv::Mat ToBlob(const cv::Mat& image);
 
 // Seconds since `start` (steady clock).
 double SecondsSince(const std::chrono::steady_clock::time_point& start);
+
+// The image of a records_camera.txt entry of `dataset` as 8-bit RGB;
+// InputError naming it when unreadable.
+cv::Mat ReadRgb(const std::filesystem::path& dataset, const std::string& image);
 
 }  // namespace locforge::learned
 

@@ -1,4 +1,4 @@
-#include "common.h"
+#include "sfm_gt_common.h"
 
 #include <algorithm>
 #include <cstdio>

@@ -1,7 +1,8 @@
-// Helpers shared by the stages of the SfM half of the ground-truth pipeline
-// (issue 8): file linking, camera groups, sequence splitting, small tables.
-#ifndef LOCFORGE_PLUGINS_SFM_GT_COMMON_H_
-#define LOCFORGE_PLUGINS_SFM_GT_COMMON_H_
+// Helpers shared by the stages of the SfM half of the ground truth
+// (calib/perturb, gt/images, gt/spline_ba, eval/calibration): file linking,
+// camera groups, sequence splitting, small tables.
+#ifndef LOCFORGE_PLUGINS_COMMON_SFM_GT_SFM_GT_COMMON_H_
+#define LOCFORGE_PLUGINS_COMMON_SFM_GT_SFM_GT_COMMON_H_
 
 #include <map>
 #include <string>
@@ -59,4 +60,4 @@ std::string Fixed(double value, int decimals);
 
 }  // namespace locforge::sfm_gt
 
-#endif  // LOCFORGE_PLUGINS_SFM_GT_COMMON_H_
+#endif  // LOCFORGE_PLUGINS_COMMON_SFM_GT_SFM_GT_COMMON_H_

@@ -14,6 +14,9 @@
 
 namespace locforge::evaluation {
 
+// Figure 7 of the paper: angle threshold (deg) = 10 x position threshold (m).
+inline constexpr double kAnglePerMetre = 10;
+
 struct QueryError {
   std::string image;
   std::string device;

@@ -10,7 +10,7 @@
 
 #include "locforge/error.h"
 
-#include "../../tests/testing/testing.h"
+#include "testing.h"
 
 namespace locforge::eval {
 namespace {

@@ -10,7 +10,7 @@
 
 #include "locforge/error.h"
 #include "onnx_net.h"
-#include "r2d2.h"  // ValidTypeName
+#include "locforge/kapture/features.h"
 
 namespace locforge::learned {
 
@@ -187,7 +187,7 @@ bool D2netOptions::Check(std::string* why) const {
     *why = "parameter 'model': the D2-Net .onnx file is required";
     return false;
   }
-  if (!ValidTypeName(type)) {
+  if (!kapture::IsFeatureTypeName(type)) {
     *why = "parameter 'type': '" + type + "' is not a folder name";
     return false;
   }

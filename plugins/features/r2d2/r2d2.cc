@@ -104,16 +104,12 @@ bool OutputsFollowContract(const std::vector<cv::Mat>& outputs, int level_h, int
          w > 0;
 }
 
-bool ValidTypeName(const std::string& s) {
-  return !s.empty() && s.find_first_of("/\\,") == std::string::npos && s != "." && s != "..";
-}
-
 bool R2d2Options::Check(std::string* why) const {
   if (model.empty()) {
     *why = "parameter 'model': the R2D2 .onnx file is required";
     return false;
   }
-  if (!ValidTypeName(type)) {
+  if (!kapture::IsFeatureTypeName(type)) {
     *why = "parameter 'type': '" + type + "' is not a folder name";
     return false;
   }

@@ -78,9 +78,6 @@ R2d2Features ExtractR2d2(const cv::Mat& rgb, const R2d2Options& options);
 // (faster2d2's max pool by 2 then x2 upsampling floors odd sides).
 bool OutputsFollowContract(const std::vector<cv::Mat>& outputs, int level_h, int level_w);
 
-// True for a usable feature type / folder name.
-bool ValidTypeName(const std::string& s);
-
 }  // namespace locforge::learned
 
 #endif  // LOCFORGE_PLUGINS_LEARNED_R2D2_H_

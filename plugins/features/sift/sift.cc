@@ -29,12 +29,8 @@ bool SameLocation(const cv::KeyPoint& a, const cv::KeyPoint& b) {
 
 }  // namespace
 
-bool ValidTypeName(const std::string& s) {
-  return !s.empty() && s.find_first_of("/\\,") == std::string::npos && s != "." && s != "..";
-}
-
 bool SiftOptions::Check(std::string* why) const {
-  if (!ValidTypeName(type)) {
+  if (!kapture::IsFeatureTypeName(type)) {
     *why = "parameter 'type': '" + type + "' is not a folder name";
     return false;
   }
@@ -59,10 +55,8 @@ std::vector<uint8_t> DescriptorsToUint8(const std::vector<float>& descriptors) {
 // bilinear resize (pixel i -> 2 i + 0.5) and reports the doubled image's
 // coordinates halved (p -> p / 2), so every keypoint is 0.25 px right of and
 // below its true position, at every octave (higher octaves subsample the
-// doubled image from its pixel 0). Measured in sift_test.cc
-// (KeypointsHaveNoSubpixelBias: +0.24 px before the correction). Uncorrected,
-// it shifted every calibrated principal point by ~0.3 px and moved cameras
-// vertically by ~0.5 cm in the ground-truth BA (plugins/sfm_gt/README.md).
+// doubled image from its pixel 0); sift_test.cc KeypointsHaveNoSubpixelBias
+// checks the correction. Its effect on the ground truth: README.md here.
 constexpr double kOpenCvSiftOffsetPx = 0.25;
 
 SiftFeatures ExtractSift(const cv::Mat& gray_in, const SiftOptions& o) {

@@ -65,9 +65,6 @@ struct SiftFeatures {
 // Extracts SIFT on an 8-bit grey image. Deterministic for a given image.
 SiftFeatures ExtractSift(const cv::Mat& gray, const SiftOptions& options);
 
-// True for a usable feature type / folder name.
-bool ValidTypeName(const std::string& s);
-
 // RootSIFT of one 128-vector in place: L1-normalise, then square root
 // (the result has unit L2 norm).
 void RootSiftInPlace(float* descriptor, int size);

@@ -217,7 +217,7 @@ TEST(SiftStage, WritesKaptureFeaturesWithTheCap) {
   const fs::path tmp = locforge::testing::MakeTempDir("sift_stage");
   const fs::path dataset = MakeDataset(tmp / "data", 3);
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_FEATURES_SIFT_PLUGIN_FILE));
+  ASSERT_TRUE(registry.LoadFile(LOCFORGE_FEATURES_PLUGIN_FILE));
   const auto* stage = registry.Find("features/sift");
   ASSERT_NE(stage, nullptr);
   runtime::StageInstance instance(*stage, runtime::CheckStageParams(*stage, {{"max_keypoints", "50"}}));
@@ -248,7 +248,7 @@ TEST(SiftStage, UnreadableImageIsAnInputErrorNamingIt) {
   const fs::path dataset = MakeDataset(tmp / "data", 1);
   WriteFileAtomic(dataset / "sensors/records_data/cam/0.png", "not a png");
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_FEATURES_SIFT_PLUGIN_FILE));
+  ASSERT_TRUE(registry.LoadFile(LOCFORGE_FEATURES_PLUGIN_FILE));
   const auto* stage = registry.Find("features/sift");
   runtime::StageInstance instance(*stage, runtime::CheckStageParams(*stage, {}));
   runtime::RunOptions run;
@@ -268,7 +268,7 @@ TEST(FeaturesImport, ImportsTheSampleR2D2Features) {
   LOCFORGE_SHARED_PATH_OR_SKIP(src, "data/kapture/virtual_gallery_tutorial/local_features/r2d2_500");
   const fs::path tmp = locforge::testing::MakeTempDir("features_import");
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_FEATURES_SIFT_PLUGIN_FILE));
+  ASSERT_TRUE(registry.LoadFile(LOCFORGE_FEATURES_PLUGIN_FILE));
   const auto* stage = registry.Find("features/import");
   runtime::StageInstance instance(*stage, runtime::CheckStageParams(*stage, {{"path", src.string()}}));
   runtime::RunOptions run;
@@ -285,7 +285,7 @@ TEST(FeaturesImport, ImportsTheSampleR2D2Features) {
 }
 
 TEST(FeaturesSiftPlugin, Conforms) {
-  const auto report = testkit::CheckPlugin(LOCFORGE_FEATURES_SIFT_PLUGIN_FILE);
+  const auto report = testkit::CheckPlugin(LOCFORGE_FEATURES_PLUGIN_FILE);
   EXPECT_TRUE(report.ok()) << report.ToString();
 }
 
@@ -293,7 +293,7 @@ TEST(FeaturesSiftPlugin, RunsDeterministically) {
   const fs::path tmp = locforge::testing::MakeTempDir("sift_det");
   const fs::path dataset = MakeDataset(tmp / "data", 3);
   runtime::Registry registry;
-  ASSERT_TRUE(testkit::CheckLoads(registry, LOCFORGE_FEATURES_SIFT_PLUGIN_FILE).ok());
+  ASSERT_TRUE(testkit::CheckLoads(registry, LOCFORGE_FEATURES_PLUGIN_FILE).ok());
   testkit::DeterminismCase c;
   c.stage_id = "features/sift";
   c.params = {{"max_keypoints", "200"}};

@@ -20,19 +20,7 @@ namespace {
 
 namespace k = locforge::kapture;
 
-void RunStage(const runtime::Registry& registry, const std::string& id,
-              std::vector<std::pair<std::string, std::string>> params,
-              std::vector<runtime::InputArtifact> inputs, const fs::path& out, int threads = 2) {
-  const auto* stage = registry.Find(id);
-  if (!stage) throw Error("no stage " + id);
-  runtime::StageInstance instance(*stage, runtime::CheckStageParams(*stage, params));
-  runtime::RunOptions run;
-  run.workspace = out.parent_path();
-  run.output_dir = out;
-  run.inputs = std::move(inputs);
-  run.threads = threads;
-  instance.Run(run);
-}
+using testkit::RunStage;
 
 struct Pair {
   std::string query, map;
@@ -60,7 +48,8 @@ TEST(PairsRetrieval, SampleApGemTop1IsTheCosineTop1AndNearby) {
   LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
   const fs::path tmp = locforge::testing::MakeTempDir("retrieval_apgem");
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_RETRIEVAL_PLUGIN_FILE));
+  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE})
+    ASSERT_TRUE(registry.LoadFile(f));
   RunStage(registry, "global/import", {{"path", (shared / "global_features/AP-GeM-LM18").string()}}, {},
            tmp / "gfeat");
   const runtime::InputArtifact gf{"map_features", "kapture.global_features", tmp / "gfeat"};
@@ -115,7 +104,8 @@ TEST(PairsGeometry, ExhaustiveAndPoseProximityOnTheSample) {
   LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
   const fs::path tmp = locforge::testing::MakeTempDir("pairs_geometry");
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_RETRIEVAL_PLUGIN_FILE));
+  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE})
+    ASSERT_TRUE(registry.LoadFile(f));
   const runtime::InputArtifact map{"map", "kapture.dataset", shared / "mapping"};
   const runtime::InputArtifact query{"query", "kapture.dataset", shared / "query"};
   RunStage(registry, "pairs/exhaustive", {}, {map}, tmp / "ex_m");
@@ -177,7 +167,8 @@ TEST(PairsGeometry, PoseProximityRevisitsAcrossSequences) {
   WriteFileAtomic(tmp / "map/sensors/records_camera.txt", records);
   WriteFileAtomic(tmp / "map/sensors/trajectories.txt", poses);
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_RETRIEVAL_PLUGIN_FILE));
+  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE})
+    ASSERT_TRUE(registry.LoadFile(f));
   const runtime::InputArtifact map{"map", "kapture.dataset", tmp / "map"};
   auto cross = [](const std::vector<Pair>& pairs) {
     int n = 0;
@@ -202,7 +193,8 @@ TEST(PairsFile, RefusesABadLineNamingIt) {
   const fs::path tmp = locforge::testing::MakeTempDir("pairs_file");
   WriteFileAtomic(tmp / "in.txt", "# query_image, map_image, score\na.jpg, b.jpg, 0.5\nc.jpg\n");
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_RETRIEVAL_PLUGIN_FILE));
+  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE})
+    ASSERT_TRUE(registry.LoadFile(f));
   try {
     RunStage(registry, "pairs/file", {{"path", (tmp / "in.txt").string()}}, {}, tmp / "out");
     ADD_FAILURE() << "expected an error";
@@ -248,7 +240,8 @@ TEST(DenseVlad, SimulatorQueriesRetrieveNearbyMapImages) {
   if (sim_plugin.empty()) GTEST_SKIP() << "simulator plugin not built";
   const fs::path tmp = locforge::testing::MakeTempDir("densevlad_sim");
   runtime::Registry registry;
-  ASSERT_TRUE(registry.LoadFile(LOCFORGE_RETRIEVAL_PLUGIN_FILE));
+  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE})
+    ASSERT_TRUE(registry.LoadFile(f));
   ASSERT_TRUE(registry.LoadFile(sim_plugin));
   RunStage(registry, "source/simulator", {{"preset", "tiny"}, {"seed", "1"}, {"lidar", "false"}, {"duration_scale", "0.35"}}, {},
            tmp / "sim");
@@ -280,7 +273,8 @@ TEST(RetrievalPlugin, DenseVladRunsDeterministically) {
   LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
   const fs::path tmp = locforge::testing::MakeTempDir("densevlad_det");
   runtime::Registry registry;
-  ASSERT_TRUE(testkit::CheckLoads(registry, LOCFORGE_RETRIEVAL_PLUGIN_FILE).ok());
+  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE})
+    ASSERT_TRUE(testkit::CheckLoads(registry, f).ok());
   const runtime::InputArtifact map{"images", "kapture.dataset", shared / "query"};
   testkit::DeterminismCase c;
   c.stage_id = "global/densevlad_vocabulary";
@@ -299,8 +293,10 @@ TEST(RetrievalPlugin, DenseVladRunsDeterministically) {
 }
 
 TEST(RetrievalPlugin, Conforms) {
-  const auto report = testkit::CheckPlugin(LOCFORGE_RETRIEVAL_PLUGIN_FILE);
-  EXPECT_TRUE(report.ok()) << report.ToString();
+  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE}) {
+    const auto report = testkit::CheckPlugin(f);
+    EXPECT_TRUE(report.ok()) << report.ToString();
+  }
 }
 
 }  // namespace

@@ -11,7 +11,7 @@
 #include "locforge/error.h"
 #include "locforge/fs.h"
 #include "onnx_net.h"
-#include "r2d2.h"  // ValidTypeName
+#include "locforge/kapture/features.h"
 
 namespace locforge::learned {
 
@@ -54,7 +54,7 @@ bool GlobalOptions::Check(std::string* why) const {
     *why = "parameter 'model': the .onnx file is required";
     return false;
   }
-  if (!ValidTypeName(type)) {
+  if (!kapture::IsFeatureTypeName(type)) {
     *why = "parameter 'type': '" + type + "' is not a folder name";
     return false;
   }

@@ -1,51 +1,32 @@
-// gt/spline_ba: the outer loop of the paper's SfM refinement (section 3.2):
-//   repeat: COLMAP point_triangulator from the current poses and intrinsics
-//           (filter threshold lowered round by round) -> continuous-time
-//           spline bundle adjustment with auto-calibration (plugins/sfm_gt/ba)
-//   until the poses and the reprojection error stop changing.
+#include "outer_loop.h"
+
 #include <chrono>
 #include <cmath>
 #include <set>
 #include <sstream>
 
-#include "common.h"
-#include "spline_ba.h"
-#include "stages.h"
-#include "../colmap_stages/colmap_db.h"
 #include "locforge/colmap/convert.h"
-#include "locforge/colmap/model.h"
 #include "locforge/colmap/run.h"
 #include "locforge/kapture/io.h"
 
 namespace locforge::sfm_gt {
-namespace {
 
+namespace kp = locforge::kapture;
+
+namespace {
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+}  // namespace
 
-// Everything the loop refines.
-struct State {
-  struct CameraState {
-    Camera camera;
-    std::optional<Pose> T_cam_rig;  // absent when the camera is in no rig
-    double time_offset_s = 0;       // clock offset (estimate_time_offsets), carried across rounds
-  };
-  struct ImageState {
-    std::string device;
-    Timestamp timestamp = 0;
-    Pose T_cam_world;
-  };
-  std::map<std::string, CameraState> cameras;  // by sensor id
-  std::map<std::string, ImageState> images;    // by image name
-  std::vector<RigSequence> sequences;          // platform poses per trajectory
-};
+bool OuterLoopOptions::Check(std::string* why) const {
+  if (filter_max_reproj_error.empty()) return *why = "filter_max_reproj_error: give at least one value", false;
+  for (double v : filter_max_reproj_error)
+    if (!(v > 0)) return *why = "filter_max_reproj_error: values must be > 0", false;
+  if (const std::string ba_why = ba.CheckMessage(); !ba_why.empty())
+    return *why = "spline bundle adjustment options: " + ba_why, false;
+  return true;
+}
 
-// Mean reprojection error (px) of the observations of a model under the
-// state's cameras and poses; the model's own poses are ignored.
-struct ReprojStats {
-  double mean_px = 0;
-  int64_t observations = 0;
-};
 ReprojStats MeanReprojection(const colmap::Reconstruction& model, const State& state,
                              const std::map<colmap::CameraId, std::string>& sensor_of) {
   std::map<colmap::ImageId, const colmap::ModelImage*> images;
@@ -65,16 +46,9 @@ ReprojStats MeanReprojection(const colmap::Reconstruction& model, const State& s
   return {n ? sum / n : 0.0, n};
 }
 
-// The spline BA problem of a model: one trajectory per platform sequence,
-// one sensor per camera, the model's images, points and observations.
-struct ProblemIndex {
-  std::vector<std::string> sensor_ids;  // problem sensor index -> sensor id
-  std::vector<std::string> image_names;  // problem image index -> name
-  int skipped_images = 0;
-};
 sfm::BAProblem BuildProblem(const colmap::Reconstruction& model, const State& state,
                             const std::map<colmap::CameraId, std::string>& sensor_of,
-                            const SplineBAStageOptions& o, Timestamp t0, ProblemIndex* index) {
+                            const OuterLoopOptions& o, Timestamp t0, ProblemIndex* index) {
   sfm::BAProblem problem;
   const double spu = o.seconds_per_unit;
   const auto margin = static_cast<Timestamp>(std::llround(0.5 / spu));  // 0.5 s beyond the ends
@@ -91,8 +65,8 @@ sfm::BAProblem BuildProblem(const colmap::Reconstruction& model, const State& st
     sfm::BAProblem::Sensor s;
     s.camera = cs.camera;
     s.T_body_camera = cs.T_cam_rig ? cs.T_cam_rig->Inverse() : Pose();
-    s.calibrate_intrinsics = o.calibrate_intrinsics;
-    s.calibrate_rotation = o.calibrate_rotations && cs.T_cam_rig.has_value();
+    s.calibrate_intrinsics = o.ba.calibrate_intrinsics;
+    s.calibrate_rotation = o.ba.calibrate_rotations && cs.T_cam_rig.has_value();
     s.time_offset_s = cs.time_offset_s;
     sensor_index[id] = static_cast<int>(problem.sensors.size());
     index->sensor_ids.push_back(id);
@@ -135,10 +109,6 @@ sfm::BAProblem BuildProblem(const colmap::Reconstruction& model, const State& st
   return problem;
 }
 
-// Pose change of the images between two states (RMS over images).
-struct PoseChange {
-  double position_m = 0, rotation_deg = 0;
-};
 PoseChange Compare(const State& a, const State& b) {
   double sp = 0, sr = 0;
   int n = 0;
@@ -152,46 +122,27 @@ PoseChange Compare(const State& a, const State& b) {
   return {n ? std::sqrt(sp / n) : 0.0, n ? std::sqrt(sr / n) : 0.0};
 }
 
-class OuterLoop {
- public:
-  OuterLoop(RunContext& ctx, const SplineBAStageOptions& o) : ctx_(ctx), o_(o), out_(ctx.output_dir()) {}
-  void Run();
+bool Converged(const OuterLoopOptions& o, bool last_threshold, const PoseChange& change,
+               double last_reproj, double reproj) {
+  return last_threshold && last_reproj >= 0 && change.position_m < o.pose_tolerance_m &&
+         change.rotation_deg < o.rotation_tolerance_deg &&
+         std::abs(reproj - last_reproj) < o.reproj_tolerance_px;
+}
 
- private:
-  void LoadInputs();
-  void BuildDatabase();
-  colmap::Reconstruction Triangulate(double threshold, const std::string& name);
-  // COLMAP reads the images for point colours only: the map's images, else
-  // an empty folder (grey points).
-  fs::path ImagePath() const {
-    const fs::path images = map_->root() / kp::layout::kRecordsData;
-    if (fs::is_directory(images)) return images;
-    fs::create_directories(out_ / "no_images");
-    return out_ / "no_images";
-  }
-  void WriteOutputs(const colmap::Reconstruction& model);
-
-  RunContext& ctx_;
-  const SplineBAStageOptions& o_;
-  const fs::path out_;
-  std::unique_ptr<kp::Kapture> map_, features_, matches_;
-  std::string type_;
-  State state_;
-  std::vector<std::vector<Pose>> fitted_;  // spline-evaluated rig poses of the last round
-  std::vector<Pose> alignments_;          // per sequence, last round (align_trajectories)
-  std::vector<double> scales_;            // per sequence, last round (scale_sequences)
-  Timestamp t0_ = 0;
-  colmap_stages::DbImages ids_;
-  std::map<colmap::CameraId, std::string> sensor_of_;
-  TextTable rounds_;
-  std::ostringstream json_rounds_;
-};
+// COLMAP reads the images for point colours only: the map's images, else an
+// empty folder (grey points).
+fs::path OuterLoop::ImagePath() const {
+  const fs::path images = map_->root() / kp::layout::kRecordsData;
+  if (fs::is_directory(images)) return images;
+  fs::create_directories(out_ / "no_images");
+  return out_ / "no_images";
+}
 
 void OuterLoop::LoadInputs() {
   map_ = std::make_unique<kp::Kapture>(ctx_.Input("map"));
   features_ = std::make_unique<kp::Kapture>(ctx_.Input("features"));
   matches_ = std::make_unique<kp::Kapture>(ctx_.Input("matches"));
-  type_ = colmap_stages::KeypointsType(*features_, o_.keypoints_type);
+  type_ = colmap::KeypointsType(*features_, o_.keypoints_type);
   const std::string traj_file = (map_->root() / kp::layout::kTrajectories).string();
   for (const kp::Sensor* s : map_->sensors().OfType(kp::kSensorCamera)) {
     State::CameraState cs;
@@ -221,8 +172,8 @@ void OuterLoop::BuildDatabase() {
   fs::remove(db_path);
   colmap::Database db(db_path, colmap::Database::Mode::kCreate);
   colmap::DatabaseWriter writer(&db);
-  ids_ = colmap_stages::AddImages(*map_, *features_, type_, &writer);
-  const int64_t pairs = colmap_stages::AddMatches(*matches_, type_, ids_.id_of, {}, &writer);
+  ids_ = colmap::AddImages(*map_, *features_, type_, &writer);
+  const int64_t pairs = colmap::AddMatches(*matches_, type_, ids_.id_of, {}, &writer);
   writer.Finish();
   for (const auto& [sensor, id] : ids_.camera_of) sensor_of_[id] = sensor;
   ctx_.Info("database: " + std::to_string(ids_.id_of.size()) + " images, " + std::to_string(pairs) + " matched pairs");
@@ -260,20 +211,72 @@ colmap::Reconstruction OuterLoop::Triangulate(double threshold, const std::strin
                                    "--output_path", (work / "model").string(), "--clear_points", "1",
                                    "--image_path", ImagePath().string()};
   for (const char* n : {"ba_refine_focal_length", "ba_refine_principal_point", "ba_refine_extra_params"})
-    colmap_stages::AddMapperOption(&args, n, 0);
-  colmap_stages::AddMapperOption(&args, "min_num_matches", o_.min_num_matches);
-  colmap_stages::AddMapperOption(&args, "filter_max_reproj_error", threshold);
-  colmap_stages::AddMapperOption(&args, "tri_merge_max_reproj_error", threshold);
-  colmap_stages::AddMapperOption(&args, "tri_complete_max_reproj_error", threshold);
-  colmap_stages::AddMapperOption(&args, "tri_create_max_angle_error", angle_deg);
-  colmap_stages::AddMapperOption(&args, "tri_continue_max_angle_error", angle_deg);
-  colmap_stages::AddMapperOption(&args, "tri_re_max_angle_error", std::max(5.0, angle_deg));
+    colmap::AddMapperOption(&args, n, 0);
+  colmap::AddMapperOption(&args, "min_num_matches", o_.min_num_matches);
+  colmap::AddMapperOption(&args, "filter_max_reproj_error", threshold);
+  colmap::AddMapperOption(&args, "tri_merge_max_reproj_error", threshold);
+  colmap::AddMapperOption(&args, "tri_complete_max_reproj_error", threshold);
+  colmap::AddMapperOption(&args, "tri_create_max_angle_error", angle_deg);
+  colmap::AddMapperOption(&args, "tri_continue_max_angle_error", angle_deg);
+  colmap::AddMapperOption(&args, "tri_re_max_angle_error", std::max(5.0, angle_deg));
   colmap::RunOptions ro;
   ro.log_file = work / "colmap_point_triangulator.log";
   ro.timeout_s = o_.timeout_s;
   ro.cancelled = [this] { return ctx_.cancelled(); };  // Ctrl-C stops colmap too
   colmap::RunColmap(args, ro);
   return colmap::ReadModel(work / "model");
+}
+
+// One round: triangulation at `threshold`, then the bundle adjustment,
+// whose refined values are written back into the state.
+OuterLoop::RoundResult OuterLoop::RunRound(int round, double threshold) {
+  const auto t_tri = Clock::now();
+  const colmap::Reconstruction model = Triangulate(threshold, "round_" + std::to_string(round));
+  const double tri_s = Since(t_tri);
+  const ReprojStats before = MeanReprojection(model, state_, sensor_of_);
+  ProblemIndex index;
+  sfm::BAProblem problem = BuildProblem(model, state_, sensor_of_, o_, t0_, &index);
+  if (problem.observations.empty())
+    throw InputError(ctx_.Input("matches").string(), 0, "matches",
+                     "round " + std::to_string(round) + ": triangulation gave no point seen twice");
+  sfm::SplineBAOptions ba = o_.ba;
+  ba.num_threads = ctx_.threads();
+  if (!ba.Check()) throw ParamError("spline bundle adjustment options: " + ba.CheckMessage());
+  const auto t_ba = Clock::now();
+  const sfm::SplineBAResult result = sfm::RunSplineBA(ba, &problem);
+  const double ba_s = Since(t_ba);
+  if (!result.usable)
+    throw Error("round " + std::to_string(round) + ": spline bundle adjustment failed: " + result.message);
+  // Write the refined values back.
+  const State previous = state_;
+  for (size_t i = 0; i < problem.images.size(); ++i)
+    state_.images.at(index.image_names[i]).T_cam_world = problem.images[i].T_world_camera.Inverse();
+  for (size_t s = 0; s < problem.sensors.size(); ++s) {
+    auto& cs = state_.cameras.at(index.sensor_ids[s]);
+    cs.camera = problem.sensors[s].camera;
+    cs.time_offset_s = problem.sensors[s].time_offset_s;
+    if (cs.T_cam_rig) cs.T_cam_rig = problem.sensors[s].T_body_camera.Inverse();
+  }
+  // The fitted splines are the output; every round starts its splines (and
+  // their weak prior) from the LiDAR poses again, so the map frame cannot
+  // drift from round to round.
+  for (size_t q = 0; q < problem.trajectories.size(); ++q)
+    fitted_[q] = problem.trajectories[q].T_world_body;
+  alignments_ = result.trajectory_alignments;
+  scales_ = result.trajectory_scales;
+  const PoseChange change = Compare(previous, state_);
+  const double after = result.final_mean_reproj_px;
+  ctx_.Info("round " + std::to_string(round) + ": filter " + FormatDouble(threshold) + " px, " +
+            std::to_string(model.points3d.size()) + " points, reproj " + Fixed(before.mean_px, 3) + " -> " +
+            Fixed(after, 3) + " px, pose change " + Fixed(100 * change.position_m, 3) + " cm / " +
+            Fixed(change.rotation_deg, 4) + " deg" +
+            (index.skipped_images ? ", " + std::to_string(index.skipped_images) + " images outside every trajectory" : ""));
+  rounds_.rows.push_back({std::to_string(round), FormatDouble(threshold), std::to_string(problem.images.size()),
+                          std::to_string(problem.points.size()), std::to_string(problem.observations.size()),
+                          Fixed(before.mean_px, 3), Fixed(after, 3), Fixed(100 * change.position_m, 3),
+                          Fixed(change.rotation_deg, 4), std::to_string(result.iterations),
+                          result.converged ? "yes" : "no", Fixed(tri_s, 1), Fixed(ba_s, 1)});
+  return {after, change};
 }
 
 void OuterLoop::Run() {
@@ -290,85 +293,10 @@ void OuterLoop::Run() {
   for (int round = 0; round < o_.rounds && !converged; ++round) {
     ctx_.ThrowIfCancelled();
     const size_t k = std::min<size_t>(round, o_.filter_max_reproj_error.size() - 1);
-    const double threshold = o_.filter_max_reproj_error[k];
-    const auto t_tri = Clock::now();
-    const colmap::Reconstruction model = Triangulate(threshold, "round_" + std::to_string(round));
-    const double tri_s = Since(t_tri);
-    const ReprojStats before = MeanReprojection(model, state_, sensor_of_);
-    ProblemIndex index;
-    sfm::BAProblem problem = BuildProblem(model, state_, sensor_of_, o_, t0_, &index);
-    if (problem.observations.empty())
-      throw InputError(ctx_.Input("matches").string(), 0, "matches",
-                       "round " + std::to_string(round) + ": triangulation gave no point seen twice");
-    sfm::SplineBAOptions ba;
-    ba.knot_spacing_s = o_.knot_spacing_s;
-    ba.use_spline_prior = o_.use_spline_prior;
-    ba.calibrate_intrinsics = o_.calibrate_intrinsics;
-    ba.calibrate_rotations = o_.calibrate_rotations;
-    ba.prior_sigma_rotation_rad = o_.prior_sigma_rotation_deg * M_PI / 180.0;
-    ba.prior_sigma_translation_m = o_.prior_sigma_translation_m;
-    ba.trajectory_prior_sigma_rotation_rad = o_.trajectory_prior_sigma_rotation_deg * M_PI / 180.0;
-    ba.trajectory_prior_sigma_translation_m = o_.trajectory_prior_sigma_translation_m;
-    // The alignment needs the trajectory prior it corrects.
-    ba.align_trajectories = o_.align_trajectories && o_.use_spline_prior &&
-                            o_.trajectory_prior_sigma_rotation_deg > 0 && o_.trajectory_prior_sigma_translation_m > 0;
-    ba.alignment_sigma_rotation_rad = o_.alignment_sigma_rotation_deg * M_PI / 180.0;
-    ba.alignment_sigma_translation_m = o_.alignment_sigma_translation_m;
-    ba.scale_trajectories = o_.scale_sequences && o_.use_spline_prior &&
-                            o_.trajectory_prior_sigma_rotation_deg > 0 && o_.trajectory_prior_sigma_translation_m > 0;
-    ba.nonholonomic_sigma_mps = o_.use_spline_prior ? o_.nonholonomic_sigma_mps : 0;
-    ba.refine_principal_point = o_.refine_principal_point;
-    ba.fix_aspect_ratio = o_.fix_aspect_ratio;
-    ba.cauchy_scale_px = o_.cauchy_scale_px;
-    ba.max_iterations = o_.max_iterations;
-    ba.estimate_time_offsets = o_.estimate_time_offsets;
-    ba.max_time_offset_s = o_.max_time_offset_s;
-    ba.zero_mean_time_offsets = o_.zero_mean_time_offsets;
-    ba.linear_solver = o_.linear_solver;
-    ba.sparse_schur_max_images = o_.sparse_schur_max_images;
-    ba.iterative_eta = o_.iterative_eta;
-    ba.num_threads = ctx_.threads();
-    if (!ba.Check()) throw ParamError("spline bundle adjustment options: " + ba.CheckMessage());
-    const auto t_ba = Clock::now();
-    const sfm::SplineBAResult result = sfm::RunSplineBA(ba, &problem);
-    const double ba_s = Since(t_ba);
-    if (!result.usable)
-      throw Error("round " + std::to_string(round) + ": spline bundle adjustment failed: " + result.message);
-    // Write the refined values back.
-    const State previous = state_;
-    for (size_t i = 0; i < problem.images.size(); ++i)
-      state_.images.at(index.image_names[i]).T_cam_world = problem.images[i].T_world_camera.Inverse();
-    for (size_t s = 0; s < problem.sensors.size(); ++s) {
-      auto& cs = state_.cameras.at(index.sensor_ids[s]);
-      cs.camera = problem.sensors[s].camera;
-      cs.time_offset_s = problem.sensors[s].time_offset_s;
-      if (cs.T_cam_rig) cs.T_cam_rig = problem.sensors[s].T_body_camera.Inverse();
-    }
-    // The fitted splines are the output; every round starts its splines (and
-    // their weak prior) from the LiDAR poses again, so the map frame cannot
-    // drift from round to round.
-    for (size_t q = 0; q < problem.trajectories.size(); ++q)
-      fitted_[q] = problem.trajectories[q].T_world_body;
-    alignments_ = result.trajectory_alignments;
-    scales_ = result.trajectory_scales;
-    const PoseChange change = Compare(previous, state_);
-    const double after = result.final_mean_reproj_px;
-    ctx_.Info("round " + std::to_string(round) + ": filter " + FormatDouble(threshold) + " px, " +
-              std::to_string(model.points3d.size()) + " points, reproj " + Fixed(before.mean_px, 3) + " -> " +
-              Fixed(after, 3) + " px, pose change " + Fixed(100 * change.position_m, 3) + " cm / " +
-              Fixed(change.rotation_deg, 4) + " deg" +
-              (index.skipped_images ? ", " + std::to_string(index.skipped_images) + " images outside every trajectory" : ""));
-    rounds_.rows.push_back({std::to_string(round), FormatDouble(threshold), std::to_string(problem.images.size()),
-                            std::to_string(problem.points.size()), std::to_string(problem.observations.size()),
-                            Fixed(before.mean_px, 3), Fixed(after, 3), Fixed(100 * change.position_m, 3),
-                            Fixed(change.rotation_deg, 4), std::to_string(result.iterations),
-                            result.converged ? "yes" : "no", Fixed(tri_s, 1), Fixed(ba_s, 1)});
+    const RoundResult r = RunRound(round, o_.filter_max_reproj_error[k]);
     ++rounds_done;
-    const bool last_threshold = k + 1 == o_.filter_max_reproj_error.size();
-    converged = last_threshold && last_reproj >= 0 && change.position_m < o_.pose_tolerance_m &&
-                change.rotation_deg < o_.rotation_tolerance_deg &&
-                std::abs(after - last_reproj) < o_.reproj_tolerance_px;
-    last_reproj = after;
+    converged = Converged(o_, k + 1 == o_.filter_max_reproj_error.size(), r.change, last_reproj, r.after_px);
+    last_reproj = r.after_px;
   }
   // The SfM model of the final poses and intrinsics.
   const auto t_final = Clock::now();
@@ -380,6 +308,12 @@ void OuterLoop::Run() {
             std::to_string(model.points3d.size()) + " points, mean reprojection " +
             Fixed(final_reproj.mean_px, 3) + " px (" + Fixed(Since(t_final), 1) + " s)");
   WriteOutputs(model);
+  WriteReports(model, final_reproj, total, converged, rounds_done, start);
+}
+
+void OuterLoop::WriteReports(const colmap::Reconstruction& model, const ReprojStats& final_reproj,
+                             const PoseChange& total, bool converged, int rounds_done,
+                             std::chrono::steady_clock::time_point start) {
   // Table 4 of the paper for this run.
   TextTable t4;
   t4.header = {"images", "points", "mean observations per image", "mean reprojection error (px)"};
@@ -484,9 +418,5 @@ void OuterLoop::WriteOutputs(const colmap::Reconstruction& model) {
   const fs::path kpts = fs::path(kp::layout::FeatureRoot(kp::FeatureKind::kKeypoints)) / type_;
   LinkTree(features_->root() / kpts, out_ / kpts);
 }
-
-}  // namespace
-
-void SplineBAStage::Run(RunContext& ctx) { OuterLoop(ctx, options()).Run(); }
 
 }  // namespace locforge::sfm_gt

@@ -1,4 +1,4 @@
-#include "colmap_db.h"
+#include "locforge/colmap/kapture_database.h"
 
 #include <set>
 #include <sstream>
@@ -7,7 +7,7 @@
 #include "locforge/kapture/io.h"
 #include "locforge/params.h"
 
-namespace locforge::colmap_stages {
+namespace locforge::colmap {
 
 std::string KeypointsType(const kapture::Kapture& features, const std::string& wanted) {
   if (!wanted.empty()) return wanted;
@@ -19,7 +19,7 @@ std::string KeypointsType(const kapture::Kapture& features, const std::string& w
 }
 
 DbImages AddImages(const kapture::Kapture& dataset, const kapture::Kapture& features,
-                   const std::string& keypoints_type, colmap::DatabaseWriter* writer) {
+                   const std::string& keypoints_type, DatabaseWriter* writer) {
   DbImages out;
   std::vector<kapture::DataRecord> records = dataset.ReadDataRecords(kapture::kSensorCamera);
   std::sort(records.begin(), records.end(),
@@ -30,7 +30,7 @@ DbImages AddImages(const kapture::Kapture& dataset, const kapture::Kapture& feat
     if (!sensor || !sensor->camera || sensor->camera->model == CameraModelId::kUnknown)
       throw InputError("sensors/sensors.txt", 0, r.device_id,
                        "camera with a COLMAP model needed for records_camera device");
-    colmap::DbCamera camera;
+    DbCamera camera;
     camera.camera = *sensor->camera;
     camera.prior_focal_length = true;
     out.camera_of[r.device_id] = 0;
@@ -40,16 +40,16 @@ DbImages AddImages(const kapture::Kapture& dataset, const kapture::Kapture& feat
     if (out.id_of.count(r.path))
       throw InputError("sensors/records_camera.txt", 0, "image_path",
                        "image '" + r.path + "' recorded twice");
-    colmap::DbImage image;
+    DbImage image;
     image.name = r.path;
     image.camera_id = out.camera_of.at(r.device_id);
-    const colmap::ImageId id = writer->WriteImage(image, false);
+    const ImageId id = writer->WriteImage(image, false);
     out.id_of[r.path] = id;
     const kapture::FeatureArray kpts = features.ReadKeypoints(keypoints_type, r.path);
     if (kpts.dsize < 2)
       throw InputError(features.FeatureFile(kapture::FeatureKind::kKeypoints, keypoints_type, r.path).string(),
                        0, "dsize", "keypoints need x, y");
-    colmap::KeypointsBlob blob;
+    KeypointsBlob blob;
     blob.rows = static_cast<uint32_t>(kpts.rows);
     blob.cols = 2;
     blob.data.reserve(2 * kpts.rows);
@@ -64,9 +64,9 @@ DbImages AddImages(const kapture::Kapture& dataset, const kapture::Kapture& feat
 }
 
 int64_t AddMatches(const kapture::Kapture& matches, const std::string& keypoints_type,
-                   const std::map<std::string, colmap::ImageId>& ids,
-                   const std::map<std::string, colmap::ImageId>& only_with,
-                   colmap::DatabaseWriter* writer) {
+                   const std::map<std::string, ImageId>& ids,
+                   const std::map<std::string, ImageId>& only_with,
+                   DatabaseWriter* writer) {
   const auto types = matches.MatchesTypes();
   if (types.empty()) return 0;
   const std::string type =
@@ -77,7 +77,7 @@ int64_t AddMatches(const kapture::Kapture& matches, const std::string& keypoints
     auto ia = ids.find(a), ib = ids.find(b);
     if (ia == ids.end() || ib == ids.end()) continue;
     if (!only_with.empty() && !only_with.count(a) && !only_with.count(b)) continue;
-    colmap::FeatureMatches fm;
+    FeatureMatches fm;
     std::set<std::pair<uint32_t, uint32_t>> seen;
     for (const auto& m : matches.ReadMatches(type, a, b)) {
       const auto pair = std::make_pair(static_cast<uint32_t>(m.index1), static_cast<uint32_t>(m.index2));
@@ -85,8 +85,8 @@ int64_t AddMatches(const kapture::Kapture& matches, const std::string& keypoints
     }
     if (fm.empty()) continue;
     writer->WriteMatches(ia->second, ib->second, fm);
-    colmap::TwoViewGeometry tvg;
-    tvg.config = static_cast<int>(colmap::TwoViewConfig::kUncalibrated);
+    TwoViewGeometry tvg;
+    tvg.config = static_cast<int>(TwoViewConfig::kUncalibrated);
     tvg.inlier_matches = fm;
     writer->WriteTwoViewGeometry(ia->second, ib->second, tvg);
     ++pairs;
@@ -115,7 +115,7 @@ void MapperParams::AddTo(std::vector<std::string>* args) const {
   AddMapperOption(args, "filter_max_reproj_error", filter_max_reproj_error);
 }
 
-int WriteRegisteredQueries(const colmap::Reconstruction& model, const kapture::Kapture& query,
+int WriteRegisteredQueries(const Reconstruction& model, const kapture::Kapture& query,
                            const std::vector<kapture::DataRecord>& records,
                            const std::filesystem::path& out) {
   kapture::Trajectories trajectories;
@@ -123,7 +123,7 @@ int WriteRegisteredQueries(const colmap::Reconstruction& model, const kapture::K
   failures << "# item, timestamp, device_id, reason\n";
   int ok = 0;
   for (const auto& r : records) {
-    if (const colmap::ModelImage* image = model.FindImageByName(r.path)) {
+    if (const ModelImage* image = model.FindImageByName(r.path)) {
       trajectories.Set(r.timestamp, r.device_id, image->CameraFromWorld());
       ++ok;
     } else {
@@ -139,12 +139,12 @@ int WriteRegisteredQueries(const colmap::Reconstruction& model, const kapture::K
   return ok;
 }
 
-colmap::RunOptions RunOptionsFor(RunContext& ctx, const std::string& tool, double timeout_s) {
-  colmap::RunOptions o;
+RunOptions RunOptionsFor(RunContext& ctx, const std::string& tool, double timeout_s) {
+  RunOptions o;
   o.log_file = ctx.output_dir() / ("colmap_" + tool + ".log");
   o.timeout_s = timeout_s;
   o.cancelled = [&ctx] { return ctx.cancelled(); };
   return o;
 }
 
-}  // namespace locforge::colmap_stages
+}  // namespace locforge::colmap

@@ -2,7 +2,7 @@
 // autodiff functors. Parameter blocks:
 //   image rotation q_world_camera  [qx qy qz qw] (EigenQuaternionManifold)
 //   image translation t_world_camera [3]
-//   point [3], intrinsics [NumParamsOf(model)] (COLMAP order)
+//   point [3], intrinsics [camera_model::NumParams(model)] (COLMAP order)
 //   control pose [qx qy qz qw tx ty tz] (see spline.h)
 //   extrinsic rotation q_body_camera [qx qy qz qw]; its translation is a constant.
 #ifndef LOCFORGE_SFM_COST_FUNCTIONS_H_
@@ -13,7 +13,7 @@
 
 #include <Eigen/Core>
 
-#include "camera_models.h"
+#include "locforge/camera_model.h"
 #include "spline.h"
 
 namespace locforge::sfm {
@@ -32,18 +32,26 @@ struct ReprojectionError {
     const Eigen::Matrix<T, 3, 1> p = q.conjugate() * (X - t);
     if (p(2) <= T(0)) return false;  // behind the camera: reject the step
     T xy[2];
-    ProjectT<kModel>(intrinsics, p, xy);
+    camera_model::Project<kModel>(intrinsics, p.data(), xy);
     residual[0] = xy[0] - T(observed(0));
     residual[1] = xy[1] - T(observed(1));
     return true;
   }
 
   static ceres::CostFunction* Create(const Eigen::Vector2d& xy) {
-    return new ceres::AutoDiffCostFunction<ReprojectionError, 2, 4, 3, 3, NumParamsOf(kModel)>(
+    return new ceres::AutoDiffCostFunction<ReprojectionError, 2, 4, 3, 3, camera_model::NumParams(kModel)>(
         new ReprojectionError(xy));
   }
   Eigen::Vector2d observed;
 };
+
+// The models the bundle adjuster supports.
+inline bool IsSupportedModel(CameraModelId id) {
+  return id == CameraModelId::kSimplePinhole || id == CameraModelId::kPinhole ||
+         id == CameraModelId::kSimpleRadial || id == CameraModelId::kRadial ||
+         id == CameraModelId::kOpenCV;
+}
+using camera_model::PrincipalPointIndex;
 
 // Dispatch on the runtime model; nullptr for unsupported models.
 inline ceres::CostFunction* CreateReprojectionError(CameraModelId model, const Eigen::Vector2d& xy) {

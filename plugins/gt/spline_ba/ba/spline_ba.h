@@ -2,8 +2,8 @@
 // numerical core of the paper's SfM refinement (Lee et al., CVPR 2021,
 // "Large-scale Localization Datasets in Crowded Indoor Spaces", section 3.2).
 //
-// THIS HEADER IS THE CONTRACT with the plugin stage gt/spline_ba
-// (plugins/sfm_gt/spline_ba_stage.cc); change it only additively.
+// The stage gt/spline_ba (plugins/gt/spline_ba.cc, outer loop in
+// ../outer_loop.h) declares SplineBAOptions as its parameters.
 //
 // Model: each platform trajectory is a uniform cumulative cubic B-spline in
 // SE(3), T_world_body(t) (spline.h). Each camera (sensor) has intrinsics and
@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "locforge/camera.h"
+#include "locforge/params.h"
 #include "locforge/pose.h"
 #include "spline.h"
 
@@ -77,9 +78,14 @@ struct BAProblem {
   std::string Validate() const;
 };
 
+// The options of the bundle adjuster. Their defaults are those of the stage
+// gt/spline_ba, which declares each of them in place (ParamSchema nested
+// members, rotations in degrees there); the reasons behind the values and
+// their measured effects are in plugins/gt/README.md.
 struct SplineBAOptions {
-  // Spacing of the spline knots (control poses), seconds.
-  double knot_spacing_s = 0.1;
+  // Spacing of the spline knots (control poses), seconds. Several images per
+  // knot: a wheeled platform moves smoothly, the images' visual noise does not.
+  double knot_spacing_s = 0.3;
   // Tie each image to its trajectory's spline (off: plain bundle adjustment
   // of free image poses; gauge then fixed as described at fix_gauge).
   bool use_spline_prior = true;
@@ -90,21 +96,20 @@ struct SplineBAOptions {
   // Keep fy / fx of the two-focal models (PINHOLE, OPENCV) at its initial
   // value: fx and fy move together. The pixel aspect ratio comes from the
   // sensor's pixel pitch (data sheet), and a platform moving in a plane
-  // leaves the vertical scale of the scene, hence fy, nearly unobservable:
-  // free, fy ended 1.0 % off with fx within 0.06 % on `small` (README).
+  // leaves the vertical scale of the scene, hence fy, nearly unobservable.
   bool fix_aspect_ratio = true;
   // Optimise the rotation of T_body_camera (only with use_spline_prior; the
   // translation is always the CAD value, as in the paper).
   bool calibrate_rotations = true;
   // Standard deviations of the spline pose error e_i (rotation part in
-  // radians, translation part in metres): they absorb camera clock offsets
-  // and capture jitter (a few ms of motion).
-  double prior_sigma_rotation_rad = 0.002;  // ~0.11 deg
-  double prior_sigma_translation_m = 0.01;
+  // radians, translation part in metres): what an image may leave its spline
+  // by (capture jitter, clock offsets: a few ms of motion).
+  double prior_sigma_rotation_rad = DegreesToRadians(0.115);
+  double prior_sigma_translation_m = 0.003;
   // Estimate one clock offset per sensor (Sensor::time_offset_s), bounded
   // by +-max_time_offset_s (< knot_spacing_s). Off by default: the paper
   // handles asynchronous cameras through each image's own timestamp only;
-  // constant per-camera offsets then bias the extrinsic rotations (README).
+  // constant per-camera offsets then bias the extrinsic rotations.
   bool estimate_time_offsets = false;
   double max_time_offset_s = 0.05;
   // With estimate_time_offsets: hold the mean of the offsets at 0 (the
@@ -112,47 +117,46 @@ struct SplineBAOptions {
   // average). A common offset of all cameras is otherwise held only by the
   // loose trajectory prior, and it trades against a common rotation of all
   // cameras about the turn axis: a platform turning at a mean yaw rate w
-  // makes a common offset d look like a yaw of w * d (22 deg/s x 10 ms =
-  // 0.22 deg), which a loose prior cannot tell apart (README "Camera rotations").
+  // makes a common offset d look like a yaw of w * d.
   bool zero_mean_time_offsets = true;
   // Gauge with spline priors: a weak prior of every spline to its initial
   // (LiDAR) samples keeps the solution in the LiDAR map frame (6 DoF; the
-  // metric scale comes from the fixed CAD translations). 0 for either sigma
-  // disables it; the first control pose of trajectory 0 is then held fixed.
-  double trajectory_prior_sigma_rotation_rad = 0.02;  // ~1.1 deg
-  double trajectory_prior_sigma_translation_m = 0.05;
+  // metric scale comes from the fixed CAD translations); it holds the
+  // LiDAR's low-frequency drift too. 0 for either sigma disables it; the
+  // first control pose of trajectory 0 is then held fixed.
+  double trajectory_prior_sigma_rotation_rad = DegreesToRadians(0.2);
+  double trajectory_prior_sigma_translation_m = 0.03;
   // Let every trajectory but the first move rigidly as a whole against its
   // LiDAR samples: the prior above then compares each spline with its
   // samples after a per-trajectory alignment G_t (6 DoF, estimated), so the
   // images, not the LiDAR, place the sequences relative to each other. The
-  // LiDAR merge of sequences (step (c)) is the least accurate part of the
-  // LiDAR poses (a sequence 0.26 deg and 2-4 cm off on `small`), and the
-  // extrinsic rotations, shared by all sequences, otherwise absorb it. Needs
-  // the trajectory prior; the first trajectory with images keeps the LiDAR
-  // map frame. A weak prior (sigmas below) keeps the alignment of a
-  // sequence that no image connects to the others at the LiDAR merge.
-  bool align_trajectories = false;
-  double alignment_sigma_rotation_rad = 0.05;    // ~3 deg
+  // LiDAR merge of sequences is the least accurate part of the LiDAR poses,
+  // and the extrinsic rotations, shared by all sequences, would otherwise
+  // absorb it. Needs the trajectory prior (Check); the first trajectory with
+  // images keeps the LiDAR map frame. A weak prior (sigmas below) keeps the
+  // alignment of a sequence that no image connects to the others at the
+  // LiDAR merge. Without spline priors there is nothing to align: ignored.
+  bool align_trajectories = true;
+  double alignment_sigma_rotation_rad = DegreesToRadians(3.0);
   double alignment_sigma_translation_m = 1.0;
   // Let each trajectory's LiDAR samples be scaled by its own factor exp(s_t)
   // (about the LiDAR world origin) before the trajectory prior compares
   // them with its spline, the mean of the log-factors held at 0. The
   // images (which all sequences share) then set the sequences' relative
   // scales, and the map keeps the LiDAR's mean scale: per-sequence scale
-  // errors of the LiDAR half (a wheel radius ~1 % off leaking through the
+  // errors of the LiDAR half (a wheel radius off leaking through the
   // odometry edges) stop bending the map. Needs the trajectory prior. A weak
   // prior (sigma below) keeps the scale of an unconnected sequence at 1.
   bool scale_trajectories = false;
   double trajectory_scale_sigma = 0.01;  // of each log-factor (1 %)
   // Wheeled-base kinematics: in the middle of every spline segment the body
   // moves along its x axis, i.e. its body-frame velocity has no lateral (y)
-  // part, within this std (m/s; 0: off). Needs the body
-  // origin at the centre of the wheel axle, x forward (a differential-drive
-  // base such as the simulator's). It holds each trajectory's heading to its
-  // direction of travel, which the images measure to a few millimetres;
-  // without it only the loose LiDAR rotation prior holds the common rotation
-  // of all cameras against the body, and a LiDAR heading bias of a few
-  // hundredths of a degree goes into every camera rotation (plugins/sfm_gt/README.md "Session 8").
+  // part, within this std (m/s; 0: off). Needs the body origin at the centre
+  // of the wheel axle, x forward (a differential-drive base such as the
+  // simulator's). It holds each trajectory's heading to its direction of
+  // travel, which the images measure to a few millimetres; without it only
+  // the loose LiDAR rotation prior holds the common rotation of all cameras
+  // against the body, and a LiDAR heading bias goes into every camera rotation.
   double nonholonomic_sigma_mps = 0;
   // Gauge without spline priors (plain BA): the pose of the first image with
   // an observation is held fixed and, for the scale, the largest coordinate of
@@ -160,33 +164,30 @@ struct SplineBAOptions {
   // coordinate of the second image).
   bool fix_gauge = true;
   // Cauchy loss scale of the reprojection residuals, pixels.
-  double cauchy_scale_px = 1.0;
+  double cauchy_scale_px = 2.0;
   bool refine_points = true;
-  int max_iterations = 100;
+  int max_iterations = 50;
   double function_tolerance = 1e-6;
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;
   // Linear solver: "auto" (SPARSE_SCHUR up to sparse_schur_max_images
   // images, else ITERATIVE_SCHUR with SCHUR_JACOBI), "sparse_schur",
-  // "iterative_schur".
-  // The inexact steps of ITERATIVE_SCHUR barely move the weakly held
-  // directions (the common rotation of all cameras against the body, under a
-  // loose trajectory prior) and Ceres then stops on the function tolerance:
-  // on a `small`-sized problem (604 images, 520k observations) it left the
-  // camera rotations 0.14 deg off where SPARSE_SCHUR reaches 0.03 deg
-  // (README "Solver"), hence SPARSE_SCHUR up to 2000 images.
+  // "iterative_schur". The inexact steps of ITERATIVE_SCHUR barely move the
+  // weakly held directions (the common rotation of all cameras against the
+  // body, under a loose trajectory prior) and Ceres then stops on the
+  // function tolerance, hence SPARSE_SCHUR while it fits in memory.
   std::string linear_solver = "auto";
   int sparse_schur_max_images = 2000;
   // Forcing sequence of the inexact (ITERATIVE_SCHUR) Newton steps (Ceres'
   // eta, its default 0.1): the conjugate gradients stop at this relative
-  // residual. 0.001 reached 0.033 deg on the problem above.
+  // residual.
   double iterative_eta = 0.001;
   // Ceres threads of this solve only (no process-wide state is touched).
   int num_threads = 1;
   bool verbose = false;  // Ceres per-iteration log to stdout
 
   bool Check() const { return CheckMessage().empty(); }
-  // "" or the first invalid field with the reason.
+  // "" or the first invalid field, or combination, with the reason.
   std::string CheckMessage() const;
 };
 

@@ -1,5 +1,5 @@
 // Time and memory of the spline bundle adjustment on a synthetic problem
-// sized like the simulator's `large` preset (plugins/simulator/README.md:
+// sized like the simulator's `large` preset (plugins/source/simulator/README.md:
 // 10 sequences, ~18 000 images): 10 cameras (5 at 2.5 Hz, 5 at 1 Hz), the
 // sequence length chosen to give --images images.
 //
