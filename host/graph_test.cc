@@ -414,14 +414,14 @@ nodes:
         "implementing locforge.registration/1: registration/fake_icp",
         "error: node 'b': parameter 'backend' (component): component 'registration/fake_icp' has "
         "no parameter 'iteration' (did you mean 'iterations'?)",
-        "/graphs/g.yaml:5:97: error: node 'c' component 'registration/fake_icp': parameter "
+        "/graphs/g.yaml:5:96: error: node 'c' component 'registration/fake_icp': parameter "
         "'iterations' (int): value 500 is out of range [1, 100]",
         "node 'd': parameter 'backend' (component): stage 'registration/other' implements "
         "locforge.other/1, not locforge.registration/1",
         "node 'e': parameter 'backend' (component): parameters refused by component "
         "'registration/fake_icp': ",
         "node 'f': parameter 'backend' (component): stage 'source/images' is not a component",
-        "/graphs/g.yaml:9:77: error: parameter 'backend': unknown key 'extra' of a component; "
+        "/graphs/g.yaml:9:75: error: parameter 'backend': unknown key 'extra' of a component; "
         "expected stage and params"})
     EXPECT_NE(errors.find(expected), std::string::npos) << expected << "\n---\n" << errors;
 }

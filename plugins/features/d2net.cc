@@ -9,6 +9,7 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 #include "onnx_net.h"
+#include "per_image_stage.h"
 #include "d2net.h"
 
 namespace locforge::learned {
@@ -23,23 +24,20 @@ k::LocalFeatureInfos D2netInfos(const D2netOptions& o, int64_t channels) {
   return k::MakeLocalFeatureInfos(o.type, "d2net", 3, k::DType::kFloat32, channels);
 }
 
-class D2netStage : public PerItemStage<D2netOptions> {
+class D2netStage : public PerImageStage<D2netOptions> {
  public:
   static StageMeta Meta() {
     StageMeta meta = {"features", "d2net",
             "D2-Net dense features, hard detection and descriptors per image (ONNX model, OpenCV dnn)",
-            {{"images", "kapture.dataset", "images to describe (records_camera.txt)"}},
+            {kImagesPort},
             {{"features", "kapture.local_features", "keypoints (x, y, 1/scale) + descriptors"}}};
     meta.version = "1.1.0";
     return meta;
   }
-  using PerItemStage::PerItemStage;
+  using PerImageStage::PerImageStage;
 
-  std::vector<std::string> ListItems(RunContext& ctx) override {
-    return k::Kapture(ctx.Input("images")).CameraImages();
-  }
   void ProcessItem(RunContext& ctx, const std::string& image) override {
-    const D2netFeatures f = ExtractD2net(ReadRgb(ctx.Input("images"), image), options());
+    const D2netFeatures f = ExtractD2net(Image(ctx, image), options());
     char line[160];
     std::snprintf(line, sizeof line, "%d keypoints, network %.3f s over %d levels", f.count(),
                   f.network_seconds, f.levels);

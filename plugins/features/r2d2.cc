@@ -9,6 +9,7 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 #include "onnx_net.h"
+#include "per_image_stage.h"
 #include "r2d2.h"
 
 namespace locforge::learned {
@@ -23,23 +24,19 @@ k::LocalFeatureInfos R2d2Infos(const R2d2Options& o) {
   return k::MakeLocalFeatureInfos(o.type, "r2d2", 3, k::DType::kFloat32, 128);
 }
 
-class R2d2Stage : public PerItemStage<R2d2Options> {
+class R2d2Stage : public PerImageStage<R2d2Options> {
  public:
   static StageMeta Meta() {
     StageMeta meta = {"features", "r2d2", "R2D2 keypoints and descriptors per image (ONNX model, OpenCV dnn)",
-            {{"images", "kapture.dataset", "images to describe (records_camera.txt)"}},
+            {kImagesPort},
             {{"features", "kapture.local_features", "keypoints + descriptors of one type"}}};
     meta.version = "1.1.0";
     return meta;
   }
-  using PerItemStage::PerItemStage;
-
-  std::vector<std::string> ListItems(RunContext& ctx) override {
-    return k::Kapture(ctx.Input("images")).CameraImages();
-  }
+  using PerImageStage::PerImageStage;
 
   void ProcessItem(RunContext& ctx, const std::string& image) override {
-    const R2d2Features f = ExtractR2d2(ReadRgb(ctx.Input("images"), image), options());
+    const R2d2Features f = ExtractR2d2(Image(ctx, image), options());
     char line[160];
     std::snprintf(line, sizeof line, "%d keypoints, network %.3f s over %d scales", f.count(),
                   f.network_seconds, f.scales);

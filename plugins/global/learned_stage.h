@@ -14,6 +14,7 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 #include "onnx_net.h"
+#include "per_image_stage.h"
 
 namespace locforge::learned {
 
@@ -26,9 +27,9 @@ struct ModelOptions : GlobalOptions {
 };
 
 template <GlobalModel kModel>
-class GlobalStage : public PerItemStage<ModelOptions<kModel>> {
+class GlobalStage : public PerImageStage<ModelOptions<kModel>> {
  public:
-  using Base = PerItemStage<ModelOptions<kModel>>;
+  using Base = PerImageStage<ModelOptions<kModel>>;
   static StageMeta Meta() {
     static const char* kNames[] = {"netvlad", "apgem", "delg"};
     static const char* kDocs[] = {
@@ -37,18 +38,15 @@ class GlobalStage : public PerItemStage<ModelOptions<kModel>> {
         "DELG global descriptor per image (the global head; ONNX, OpenCV dnn; multi-scale)"};
     const int m = static_cast<int>(kModel);
     StageMeta meta = {"global", kNames[m], kDocs[m],
-            {{"images", "kapture.dataset", "images to describe (records_camera.txt)"}},
+            {kImagesPort},
             {{"features", "kapture.global_features", "one .gfeat per image"}}};
     meta.version = "1.1.0";
     return meta;
   }
   using Base::Base;
 
-  std::vector<std::string> ListItems(RunContext& ctx) override {
-    return k::Kapture(ctx.Input("images")).CameraImages();
-  }
   void ProcessItem(RunContext& ctx, const std::string& image) override {
-    const GlobalDescriptor g = ExtractGlobal(ReadRgb(ctx.Input("images"), image), this->options(), Pca());
+    const GlobalDescriptor g = ExtractGlobal(this->Image(ctx, image), this->options(), Pca());
     char line[160];
     std::snprintf(line, sizeof line, "%zu dims, network %.3f s", g.values.size(), g.network_seconds);
     ctx.Debug(image + ": " + line);

@@ -6,12 +6,12 @@
 #include <memory>
 #include <string>
 
-#include "factor.h"
-#include "kdtree.h"
+#include "gicp/factor.h"
+#include "gicp/kdtree.h"
 #include "locforge/plugin.h"
 #include "locforge/registration.h"
-#include "optimizer.h"
-#include "preprocess.h"
+#include "gicp/optimizer.h"
+#include "gicp/preprocess.h"
 
 namespace locforge::gicp {
 namespace {

@@ -1,11 +1,13 @@
 #include "onnx_net.h"
-#include "locforge/kapture/kapture.h"
+
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <map>
 #include <vector>
 
 #include "locforge/error.h"
+#include "locforge/kapture/kapture.h"
 
 namespace locforge::learned {
 

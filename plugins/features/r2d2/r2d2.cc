@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "locforge/error.h"
+#include "locforge/kapture/features.h"
 #include "onnx_net.h"
 
 namespace locforge::learned {

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "locforge/error.h"
+#include "locforge/kapture/features.h"
 
 namespace locforge::sift {
 

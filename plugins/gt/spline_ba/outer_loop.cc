@@ -330,7 +330,7 @@ void OuterLoop::WriteReports(const colmap::Reconstruction& model, const ReprojSt
                       " after " + std::to_string(rounds_done) + " rounds; total change from the input poses: " +
                       Fixed(100 * total.position_m, 2) + " cm, " + Fixed(total.rotation_deg, 3) + " deg RMS.\n");
   WriteFileAtomic(out_ / "rounds.csv", rounds_.Csv());
-  if (o_.estimate_time_offsets) {
+  if (o_.ba.estimate_time_offsets) {
     // Estimated clock offset of each camera: its images are tied to the
     // spline at timestamp + offset.
     TextTable offsets;

@@ -113,11 +113,6 @@ int64_t CopyRecordsFile(const fs::path& from, const fs::path& to, const std::str
   return 0;
 }
 
-bool IsDataRecordType(const std::string& type) {
-  const RecordKind k = RecordKindOf(type);
-  return k == RecordKind::kCamera || k == RecordKind::kLidar || k == RecordKind::kDepth;
-}
-
 constexpr size_t kListCap = 100;
 
 }  // namespace

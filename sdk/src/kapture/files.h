@@ -9,6 +9,7 @@
 #include <system_error>
 #include <vector>
 
+#include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
 
 namespace locforge::kapture::files {
@@ -57,6 +58,12 @@ inline FeatureSet MakeFeatureSet(FeatureKind kind, const std::string& type, cons
   set.info = ReadFeatureInfo(dir / InfoFileName(kind), kind, display_dir + "/" + InfoFileName(kind));
   set.type = type.empty() ? set.info.name : type;
   return set;
+}
+
+// Record types whose records point at files under records_data.
+inline bool IsDataRecordType(const std::string& type) {
+  const RecordKind k = RecordKindOf(type);
+  return k == RecordKind::kCamera || k == RecordKind::kLidar || k == RecordKind::kDepth;
 }
 
 }  // namespace locforge::kapture::files
