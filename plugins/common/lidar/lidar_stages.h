@@ -20,6 +20,13 @@ namespace locforge::lidar {
   s.Add("wheel_axle", &O::wheel_axle, "Axle length (m); 0: from sensors.txt").Min(0);       \
   s.Add("pulses_per_rev", &O::pulses_per_rev, "Encoder pulses per revolution; 0: from sensors.txt").Min(0)
 
+// The recording a stage reads: its `recording` input when wired (e.g. from
+// source/simulator in the same graph), else its `dataset` parameter; a clear
+// ParamError when neither or both are given.
+fs::path RecordingOf(RunContext& ctx, const std::string& dataset_param, const std::string& stage);
+#define LOCFORGE_LIDAR_RECORDING_PORT \
+  {"recording", "kapture.dataset", "the recording, instead of the dataset parameter", LF_PORT_OPTIONAL}
+
 // ---- odometry/diff_drive ------------------------------------------------------
 
 struct DiffDriveOptions {
@@ -27,8 +34,8 @@ struct DiffDriveOptions {
   double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
   double rate_hz = 10;       // Output poses per second.
   static void Declare(ParamSchema<DiffDriveOptions>& s) {
-    s.Add("dataset", &DiffDriveOptions::dataset, "Kapture recording with wheel encoder records")
-        .Path().Required();
+    s.Add("dataset", &DiffDriveOptions::dataset,
+          "Kapture recording with wheel encoder records (or wire the recording input)").Path();
     LOCFORGE_LIDAR_WHEEL_PARAMS(DiffDriveOptions);
     s.Add("rate_hz", &DiffDriveOptions::rate_hz, "Output platform poses per second").Range(0.1, 1000);
   }
@@ -40,7 +47,7 @@ class DiffDrive : public Stage<DiffDriveOptions> {
   static StageMeta Meta() {
     return {"odometry", "diff_drive",
             "Differential-drive wheel odometry from encoder ticks (platform trajectory, device rig)",
-            {},
+            {LOCFORGE_LIDAR_RECORDING_PORT},
             {{"trajectories", "kapture.trajectories", "T_rig_odom per segment, at rate_hz"}}};
   }
   using Stage::Stage;
@@ -61,8 +68,8 @@ struct PreprocessOptions {
   double seconds_per_unit = 1e-6;
   double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
   static void Declare(ParamSchema<PreprocessOptions>& s) {
-    s.Add("dataset", &PreprocessOptions::dataset, "Kapture recording (LiDAR + wheel records)")
-        .Path().Required();
+    s.Add("dataset", &PreprocessOptions::dataset,
+          "Kapture recording (LiDAR + wheel records), or wire the recording input").Path();
     s.Add("reference_lidar", &PreprocessOptions::reference_lidar,
           "LiDAR whose scan times are the reference; empty: the first lidar of sensors.txt");
     s.Add("voxel", &PreprocessOptions::voxel, "Voxel size of the downsampling (m); 0: none").Range(0, 10);
@@ -86,7 +93,7 @@ class Preprocess : public PerItemStage<PreprocessOptions> {
   static StageMeta Meta() {
     return {"lidar", "preprocess",
             "LiDAR scans into the platform frame, undistorted by odometry, merged, filtered, downsampled",
-            {},
+            {LOCFORGE_LIDAR_RECORDING_PORT},
             {{"scans", "kapture.dataset",
               "records_lidar.txt of device 'scan' (platform frame) + one PCD per reference scan"}}};
   }
@@ -102,8 +109,9 @@ class Preprocess : public PerItemStage<PreprocessOptions> {
   };
 
  private:
-  void Load();
+  void Load(RunContext& ctx);
   std::mutex mutex_;
+  fs::path dataset_;
   bool loaded_ = false;
   std::unique_ptr<WheelOdometry> odometry_;
   std::map<std::string, Pose> T_platform_lidar_;
@@ -149,23 +157,36 @@ struct PoseGraphSlamOptions {
   double loop_overlap = 0.6;        // inlier fraction of the precise check
   int loop_stride = 2;              // test loops from every n-th keyframe
   int loop_yaw_hypotheses = 12;     // headings tried when joining two sequences
-  // Joining a sequence (join_consensus.h): seed loops from the keyframes
-  // nearest its start (all headings), then each hypothesis of its frame is
-  // verified by the loops it predicts elsewhere; joined when enough loops at
-  // distinct keyframes agree and no disagreeing cluster comes close.
+  // Joining parts of the map (sequences, or groups already joined; join.h):
+  // loops between them come from seeds (keyframes near a sequence's start,
+  // every heading: sequences often start at one spot) and from place
+  // recognition (Scan Context) over the whole trajectories; each distinct
+  // frame they suggest is judged by the whole overlap of the two maps (the
+  // structure of one in the other's free space); a join is made when one
+  // frame explains the overlap and no other comes close, else refused.
   int join_seeds = 8;               // seed keyframes (every loop_stride-th from the start)
   double join_seed_radius = 8;      // m from the sequence's start, seed keyframes
-  // Largest mean residual of the seeds' rough check (m): looser than
-  // loop_rough_error, as a wrong seed loop is rejected by the consensus.
+  // Largest mean residual of the join loops' rough check (m): looser than
+  // loop_rough_error, as the overlap evidence judges the hypotheses.
   double join_rough_error = 1.0;
-  int join_hypotheses = 4;          // frame hypotheses verified per attempt
-  int join_verify = 12;             // predicted loops tested per hypothesis
-  int join_min_support = 3;         // distinct keyframes of the sequence whose loops agree
-  int join_min_verified = 3;        // ... of them with loops found where a hypothesis predicted them
-  double join_min_verified_fraction = 0.25;  // of the predicted loops tested for the winning hypothesis
-  double join_max_translation = 1.0;   // m, agreement of two hypotheses at their keyframes
-  double join_max_rotation = 5;        // deg, likewise
-  double join_max_rival_ratio = 0.5;   // best disagreeing cluster's verified support / the winner's
+  int join_place_candidates = 10;   // keyframes of A ranked by ring key per keyframe of B
+  int join_place_matches = 2;       // ... of which the best by Scan Context distance are checked
+  double join_place_max_distance = 0.35;  // largest Scan Context distance of a checked place
+  int join_verify = 12;             // loops predicted by the winning frame along B, tested
+  int join_min_support = 3;         // distinct keyframes of B whose loops agree with the winning frame
+  int join_min_verified = 2;        // ... found where the frame predicted them
+  double join_max_translation = 1.0;   // m, two loops suggest one frame: their keyframes within this ...
+  double join_max_rotation = 5;        // deg, ... and their rotations within this
+  double join_max_conflict = 0.2;      // fraction of shared structure in the other map's free space
+  double join_min_overlap = 20;        // m of structure seen by both maps (cells x cell size)
+  double join_rival_conflict_ratio = 1.5;   // a distinct frame with a conflict below ratio x the winner's ...
+  double join_rival_conflict_margin = 0.02; // ... + margin ...
+  double join_rival_overlap = 0.5;          // ... and this fraction of its overlap makes the join ambiguous
+  double join_free_space_margin = 0.3;      // m: structure this close to the other map's returns agrees
+  // A part that cannot be joined: "error" stops the run with the evidence and
+  // how to give initial_poses; "separate" keeps it out of the merged frame
+  // (trajectories.txt holds the first sequence's part, joins.csv says why).
+  std::string unjoined = "error";
   std::string loss = "cauchy";      // robust loss of loop edges
   double loss_scale = 1.0;          // in whitened residual units
   double sigma_translation = 0.01;  // m, registration edges
@@ -190,13 +211,17 @@ struct PoseGraphSlamOptions {
   WheelParams Wheels() const { return {wheel_radius, wheel_axle, pulses_per_rev}; }
 };
 
+// One initial_poses entry, "sequence x y yaw_deg": false when malformed.
+bool ParseInitialPose(const std::string& entry, std::string* sequence, Pose* start);
+
 class PoseGraphSlam : public Stage<PoseGraphSlamOptions> {
  public:
   static StageMeta Meta() {
     return {"slam", "pose_graph",
             "Pose-graph LiDAR SLAM: registration edges, coarse-to-fine loop closures, Ceres, sequences merged",
             {{"scans", "kapture.dataset",
-              "Undistorted platform-frame scans (lidar/preprocess, or source/pcd_keyframes)"}},
+              "Undistorted platform-frame scans (lidar/preprocess, or source/pcd_keyframes)"},
+             LOCFORGE_LIDAR_RECORDING_PORT},
             {{"trajectories", "kapture.trajectories",
               "sensors/trajectories.txt: rig at every scan, cameras at every image; map.pcd/ply, "
               "pose_graph.g2o, trajectories.svg/png, slam.json"}}};
@@ -264,7 +289,7 @@ struct LidarToLidarOptions {
   double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
   static void Declare(ParamSchema<LidarToLidarOptions>& s) {
     using O = LidarToLidarOptions;
-    s.Add("dataset", &O::dataset, "Kapture recording with two lidars").Path().Required();
+    s.Add("dataset", &O::dataset, "Kapture recording with two lidars (or wire the recording input)").Path();
     s.Add("reference_lidar", &O::reference_lidar, "Reference lidar; empty: the first of sensors.txt");
     s.Add("lidar", &O::lidar, "Calibrated lidar; empty: the other one");
     s.Add("scans", &O::scans, "Scans accumulated").Range(1, 1000);
@@ -286,7 +311,7 @@ class LidarToLidar : public Stage<LidarToLidarOptions> {
  public:
   static StageMeta Meta() {
     return {"calib", "lidar_to_lidar", "Extrinsic of a second LiDAR w.r.t. the first by registration on their shared view",
-            {},
+            {LOCFORGE_LIDAR_RECORDING_PORT},
             {{"rig", "kapture.dataset", "sensors/rigs.txt with the calibrated extrinsic, calib.json"}}};
   }
   using Stage::Stage;

@@ -350,7 +350,7 @@ DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int thr
     w.trajectory = PlanTrajectory(spec, o, plan, rig.wheels, mapping, mapped, split_x);
     if (plan.split == "mapping") mapping.push_back(w.trajectory);
     const double duration = w.trajectory.duration();
-    for (size_t c = 0; c < rig.cameras.size(); ++c)
+    for (size_t c = 0; o.cameras && c < rig.cameras.size(); ++c)
       for (const Capture& cap : CaptureTimes(rig.cameras[c], duration, Mix(plan.seed, 100 + c)))
         w.captures.emplace_back(c, cap);
     if (o.lidar)

@@ -30,6 +30,7 @@ struct SimOptions {
   double query_duration_s = 4;
   double crowdedness = 2.0;         // people per 100 m^2 of floor
   bool lidar = true;                // write LiDAR scans
+  bool cameras = true;              // render and write camera images (false: LiDAR + wheels only)
   bool masks = true;                // write person masks
   std::string image_format = "jpg"; // jpg | png
   std::string layout = "splits";    // splits: mapping kapture at the root, queries in validation/, test/; single: one kapture

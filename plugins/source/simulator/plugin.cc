@@ -20,6 +20,7 @@ struct SimulatorOptions {
   std::string layout = "splits";   // splits | single.
   std::string image_format = "jpg";
   bool lidar = true;
+  bool cameras = true;
   bool masks = true;
 
   static void Declare(ParamSchema<SimulatorOptions>& s) {
@@ -45,6 +46,8 @@ struct SimulatorOptions {
         .Choices({"splits", "single"});
     s.Add("image_format", &SimulatorOptions::image_format, "Image files").Choices({"jpg", "png"});
     s.Add("lidar", &SimulatorOptions::lidar, "Write the two LiDARs' scans (PCD)");
+    s.Add("cameras", &SimulatorOptions::cameras,
+          "Render and write the camera images (false: LiDAR and wheel records only, e.g. for LiDAR sweeps)");
     s.Add("masks", &SimulatorOptions::masks, "Write the true per-pixel person masks");
   }
 
@@ -62,6 +65,7 @@ struct SimulatorOptions {
     o.layout = layout;
     o.image_format = image_format;
     o.lidar = lidar;
+    o.cameras = cameras;
     o.masks = masks;
     return o;
   }
