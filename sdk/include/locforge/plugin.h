@@ -52,7 +52,7 @@ struct StageMeta {
   // The stage's own version: bump it when its results change. It enters the
   // cache keys of its results instead of the plugin's version, so the other
   // stages of the plugin keep their cached results. Empty: the plugin's.
-  std::string version;
+  std::string version = {};
 };
 
 // C++ view of LfRunContext, handed to Run/ListItems/ProcessItem/Finalize.
