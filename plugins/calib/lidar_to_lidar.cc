@@ -12,9 +12,57 @@
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/registration.h"
-#include "lidar_stages.h"
+#include "lidar_params.h"
+#include "locforge/plugin.h"
+#include "wheel_odometry.h"
 
 namespace locforge::lidar {
+
+struct LidarToLidarOptions {
+  std::string dataset;           // the recording (or the `recording` input)
+  std::string reference_lidar;   // "": the first lidar of sensors.txt
+  std::string lidar;             // calibrated one; "": the other lidar
+  int scans = 10;                // scans accumulated
+  int iterations = 2;            // undistortion / registration alternations
+  double voxel_m = 0.1, min_range_m = 0.5, max_range_m = 60;
+  ComponentSpec registration{"registration/gicp"};
+  // Start offset applied to rigs.txt (x y z in m, roll pitch yaw in deg): tests, bad CAD.
+  std::vector<double> initial_offset = {0, 0, 0, 0, 0, 0};
+  double seconds_per_unit = 1e-6;
+  WheelOverrides wheels;
+  static void Declare(ParamSchema<LidarToLidarOptions>& s) {
+    using O = LidarToLidarOptions;
+    s.Add("dataset", &O::dataset, "Kapture recording with two lidars (or wire the recording input)").Path();
+    s.Add("reference_lidar", &O::reference_lidar, "Reference lidar; empty: the first of sensors.txt");
+    s.Add("lidar", &O::lidar, "Calibrated lidar; empty: the other one");
+    s.Add("scans", &O::scans, "Scans accumulated").Range(1, 1000);
+    s.Add("iterations", &O::iterations, "Undistortion / registration alternations").Range(1, 10);
+    s.Add("voxel_m", &O::voxel_m, "Voxel of the accumulated clouds (m)").Range(0.01, 10);
+    s.Add("min_range_m", &O::min_range_m, "Closer returns dropped (m)").Min(0);
+    s.Add("max_range_m", &O::max_range_m, "Farther returns dropped (m)").Min(0);
+    s.Add("registration", &O::registration, "Registration back-end: a stage id, or {stage: ID, params: {...}}")
+        .Implements(LF_REGISTRATION_INTERFACE);
+    s.Add("initial_offset", &O::initial_offset,
+          "Offset applied to the rigs.txt extrinsic first (x y z in m, roll pitch yaw in deg)");
+    s.Add("seconds_per_unit", &O::seconds_per_unit, "Duration of one timestamp unit (s)").Range(1e-12, 1);
+    DeclareWheelOverrides(s, &O::wheels);
+  }
+  bool Check(std::string* why) const;
+};
+
+class LidarToLidar : public Stage<LidarToLidarOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta{"calib", "lidar_to_lidar",
+                   "Extrinsic of a second LiDAR w.r.t. the first by registration on their shared view",
+                   {RecordingPort()},
+                   {{"rig", "kapture.dataset", "sensors/rigs.txt with the calibrated extrinsic, calib.json"}}};
+    meta.version = "0.7.0";
+    return meta;
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
 
 bool LidarToLidarOptions::Check(std::string* why) const {
   if (initial_offset.size() == 6) return true;
@@ -26,7 +74,7 @@ void LidarToLidar::Run(RunContext& ctx) {
   const LidarToLidarOptions& o = options();
   const fs::path dataset = RecordingOf(ctx, o.dataset, "calib/lidar_to_lidar");
   kapture::Kapture k(dataset);
-  const WheelOdometry odometry = WheelOdometry::FromKapture(dataset, o.Wheels());
+  const WheelOdometry odometry = WheelOdometry::FromKapture(dataset, o.wheels.Params());
   std::vector<std::string> lidars;
   for (const auto* s : k.sensors().OfType(kapture::kSensorLidar)) lidars.push_back(s->id);
   if (lidars.size() < 2) throw InputError((dataset / kapture::layout::kSensors).string(), 0, "sensor_type", "fewer than 2 lidars");
@@ -70,7 +118,7 @@ void LidarToLidar::Run(RunContext& ctx) {
     const Pose back = into_sensor ? T_platform_sensor.Inverse() : Pose();
     for (size_t i = 0; i < scan.size(); ++i) {
       const float range = scan.points[i].norm();
-      if (range < o.min_range || range > o.max_range) continue;
+      if (range < o.min_range_m || range > o.max_range_m) continue;
       const double t = t_record + (scan.has_times() ? scan.times[i] : 0.0) / o.seconds_per_unit;
       const Pose T = back * odometry.Relative(t0, t) * T_platform_sensor;
       out.points.push_back((T * scan.points[i].cast<double>()).cast<float>());
@@ -82,13 +130,8 @@ void LidarToLidar::Run(RunContext& ctx) {
     const Cloud c = Undistort(scan, t, T_platform_ref, false);
     target.points.insert(target.points.end(), c.points.begin(), c.points.end());
   }
-  target = VoxelDownsample(target, o.voxel);
-  std::vector<std::pair<std::string, std::string>> params;
-  for (const auto& kv : o.registration_params) {
-    const size_t eq = kv.find('=');
-    params.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
-  }
-  const RegistrationBackend backend = RegistrationBackend::Create(ctx, o.registration, params);
+  target = VoxelDownsample(target, o.voxel_m);
+  const RegistrationBackend backend = RegistrationBackend::Create(ctx, o.registration);
   RegistrationResult r;
   for (int it = 0; it < o.iterations; ++it) {
     Cloud source;
@@ -96,7 +139,7 @@ void LidarToLidar::Run(RunContext& ctx) {
       const Cloud c = Undistort(scan, t, T_platform_other, true);
       source.points.insert(source.points.end(), c.points.begin(), c.points.end());
     }
-    source = VoxelDownsample(source, o.voxel);
+    source = VoxelDownsample(source, o.voxel_m);
     r = backend.Align(source, target, T_platform_other, ctx.threads());
     if (!r.converged) throw Error("calib/lidar_to_lidar: registration did not converge");
     T_platform_other = r.T_target_source;
@@ -125,5 +168,7 @@ void LidarToLidar::Run(RunContext& ctx) {
     << ",\n  \"inlier_fraction\": " << r.inlier_fraction << ",\n  \"final_error\": " << r.final_error << "\n}\n";
   WriteFileAtomic(ctx.output_dir() / "calib.json", j.str());
 }
+
+LOCFORGE_EXPORT_STAGE(AddLidarToLidar, LidarToLidar)
 
 }  // namespace locforge::lidar

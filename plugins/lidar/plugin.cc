@@ -1,8 +1,9 @@
-// The stages of kind lidar. lidar/preprocess declares no version of its own (its
-// declaration is in ../common/lidar/lidar_stages.h): this plugin's version
-// keys its cached results.
-#include "lidar_stages.h"
+// The stages of kind lidar; each stage's version keys its cached results.
 #include "locforge/plugin.h"
 
-LOCFORGE_PLUGIN("lidar", "0.6.0", "LiDAR scans into the platform frame: undistortion, merging, filtering",
-                locforge::lidar::Preprocess)
+namespace locforge::lidar {
+LOCFORGE_DECLARE_STAGE(AddPreprocess);
+}  // namespace locforge::lidar
+
+LOCFORGE_PLUGIN("lidar", "0.7.0", "LiDAR scans into the platform frame: undistortion, merging, filtering",
+                locforge::Exported<locforge::lidar::AddPreprocess>)

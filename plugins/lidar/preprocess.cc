@@ -5,21 +5,92 @@
 // range and self-hit filters, voxel downsampling, one PCD per scan.
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
 
 #include "cloud.h"
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
-#include "lidar_stages.h"
+#include "lidar_params.h"
+#include "locforge/plugin.h"
+#include "wheel_odometry.h"
 
 namespace locforge::lidar {
 
+struct PreprocessOptions {
+  std::string dataset;           // the recording (or the `recording` input)
+  std::string reference_lidar;   // "": the first lidar of sensors.txt
+  double voxel_m = 0.1;          // 0 disables downsampling
+  double min_range_m = 0.5, max_range_m = 60;
+  // Self-hit box in the platform frame: xmin ymin zmin xmax ymax zmax.
+  std::vector<double> self_box_m = {-0.6, -0.45, -0.2, 0.6, 0.45, 2.3};
+  double max_pair_dt_s = 0.06;   // between the merged scans of two LiDARs
+  bool undistort = true;
+  double seconds_per_unit = 1e-6;
+  WheelOverrides wheels;
+  static void Declare(ParamSchema<PreprocessOptions>& s) {
+    using O = PreprocessOptions;
+    s.Add("dataset", &O::dataset, "Kapture recording (LiDAR + wheel records), or wire the recording input").Path();
+    s.Add("reference_lidar", &O::reference_lidar,
+          "LiDAR whose scan times are the reference; empty: the first lidar of sensors.txt");
+    s.Add("voxel_m", &O::voxel_m, "Voxel size of the downsampling (m); 0: none").Range(0, 10);
+    s.Add("min_range_m", &O::min_range_m, "Closer returns are dropped (m)").Min(0);
+    s.Add("max_range_m", &O::max_range_m, "Farther returns are dropped (m)").Min(0);
+    s.Add("self_box_m", &O::self_box_m,
+          "Platform box (xmin ymin zmin xmax ymax zmax, platform frame, m): returns inside are self hits");
+    s.Add("max_pair_dt_s", &O::max_pair_dt_s, "Largest time between the scans of two LiDARs merged into one (s)")
+        .Range(0, 10);
+    s.Add("undistort", &O::undistort, "Motion-compensate every point (paper eq. 1)");
+    s.Add("seconds_per_unit", &O::seconds_per_unit, "Duration of one timestamp unit (1e-6: microseconds)")
+        .Range(1e-12, 1);
+    DeclareWheelOverrides(s, &O::wheels);
+  }
+  bool Check(std::string* why) const;
+};
+
+class Preprocess : public PerItemStage<PreprocessOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta{"lidar", "preprocess",
+                   "LiDAR scans into the platform frame, undistorted by odometry, merged, filtered, downsampled",
+                   {RecordingPort()},
+                   {{"scans", "kapture.dataset",
+                     "records_lidar.txt of device 'scan' (platform frame) + one PCD per reference scan"}}};
+    meta.version = "0.7.0";
+    return meta;
+  }
+  using PerItemStage::PerItemStage;
+  std::vector<std::string> ListItems(RunContext& ctx) override;
+  void ProcessItem(RunContext& ctx, const std::string& item) override;
+  void Finalize(RunContext& ctx) override;
+
+  struct Source {
+    std::string path;  // under records_data
+    std::string lidar;
+    Timestamp timestamp;
+  };
+
+ private:
+  void Load(RunContext& ctx);
+  std::mutex mutex_;
+  fs::path dataset_;
+  bool loaded_ = false;
+  std::unique_ptr<WheelOdometry> odometry_;
+  std::map<std::string, Pose> T_platform_lidar_;
+  std::map<std::string, std::vector<Source>> items_;  // reference path -> scans merged
+};
+
+
 bool PreprocessOptions::Check(std::string* why) const {
-  if (self_box.size() != 6) {
-    if (why) *why = "self_box: expected 6 numbers (xmin ymin zmin xmax ymax zmax)";
+  if (self_box_m.size() != 6) {
+    if (why) *why = "self_box_m: expected 6 numbers (xmin ymin zmin xmax ymax zmax)";
     return false;
   }
-  if (max_range <= min_range) {
-    if (why) *why = "max_range must be larger than min_range";
+  if (max_range_m <= min_range_m) {
+    if (why) *why = "max_range_m must be larger than min_range_m";
     return false;
   }
   return true;
@@ -61,7 +132,7 @@ void Preprocess::Load(RunContext& ctx) {
     by_lidar[r.device_id].push_back({r.path, r.device_id, r.timestamp});
   for (auto& [id, v] : by_lidar)
     std::sort(v.begin(), v.end(), [](const Source& a, const Source& b) { return a.timestamp < b.timestamp; });
-  const double max_dt_units = o.max_pair_dt / o.seconds_per_unit;
+  const double max_dt_units = o.max_pair_dt_s / o.seconds_per_unit;
   for (const auto& ref : by_lidar[reference]) {
     std::vector<Source>& merged = items_[ref.path];
     merged.push_back(ref);
@@ -80,7 +151,7 @@ void Preprocess::Load(RunContext& ctx) {
     }
   }
   if (o.undistort)
-    odometry_ = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(dataset_, o.Wheels()));
+    odometry_ = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(dataset_, o.wheels.Params()));
   loaded_ = true;
 }
 
@@ -98,8 +169,8 @@ void Preprocess::ProcessItem(RunContext& ctx, const std::string& item) {
   if (found == items_.end()) throw Error("lidar/preprocess: unknown item '" + item + "'");
   kapture::Kapture k(dataset_);
   const double t_ref = static_cast<double>(found->second.front().timestamp);
-  const Eigen::Vector3f box_min(o.self_box[0], o.self_box[1], o.self_box[2]);
-  const Eigen::Vector3f box_max(o.self_box[3], o.self_box[4], o.self_box[5]);
+  const Eigen::Vector3f box_min(o.self_box_m[0], o.self_box_m[1], o.self_box_m[2]);
+  const Eigen::Vector3f box_max(o.self_box_m[3], o.self_box_m[4], o.self_box_m[5]);
   Cloud merged;
   for (const Source& src : found->second) {
     const Cloud scan = ReadScan(k.ExistingRecordDataPath(src.path, kapture::layout::RecordsFile("lidar")));
@@ -122,7 +193,7 @@ void Preprocess::ProcessItem(RunContext& ctx, const std::string& item) {
     for (size_t i = 0; i < scan.size(); ++i) {
       const Eigen::Vector3f& p = scan.points[i];
       const float range = p.norm();
-      if (range < o.min_range || range > o.max_range) continue;
+      if (range < o.min_range_m || range > o.max_range_m) continue;
       const Eigen::Vector3f in_platform = mount.topLeftCorner<3, 3>() * p + mount.topRightCorner<3, 1>();
       if ((in_platform.array() >= box_min.array()).all() && (in_platform.array() <= box_max.array()).all())
         continue;  // self hit
@@ -130,7 +201,7 @@ void Preprocess::ProcessItem(RunContext& ctx, const std::string& item) {
       merged.points.push_back(T.topLeftCorner<3, 3>() * p + T.topRightCorner<3, 1>());
     }
   }
-  if (o.voxel > 0) merged = VoxelDownsample(merged, o.voxel);
+  if (o.voxel_m > 0) merged = VoxelDownsample(merged, o.voxel_m);
   WritePcd(ctx.output_dir() / kapture::layout::kRecordsData / OutputPath(item), merged);
 }
 
@@ -151,5 +222,7 @@ void Preprocess::Finalize(RunContext& ctx) {
             [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
   kapture::WriteRecords(out / kapture::layout::RecordsFile("lidar"), kapture::RecordKind::kLidar, records);
 }
+
+LOCFORGE_EXPORT_STAGE(AddPreprocess, Preprocess)
 
 }  // namespace locforge::lidar

@@ -219,7 +219,7 @@ TEST(LidarPipeline, BalmIndoorKeyframesAgreeWithReferenceLoopsAtRevisitsCrispMap
                               {"run", std::string(LOCFORGE_SOURCE_DIR) + "/configs/gt/lidar_keyframes.yaml",
                                "--workspace", (dir / "ws").string(), "--set", "scans=" + (data / "scans").string(),
                                "--set", "poses=" + (data / "reference_poses_tum.txt").string(), "--set",
-                               "slam.registration_params=[voxel_size=0.3]"},
+                               "registration={stage: registration/gicp, params: {voxel_size: 0.3}}"},
                               dir / "run.log"),
             0)
       << ReadFile(dir / "run.log");

@@ -10,13 +10,54 @@
 #include "cloud.h"
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
-#include "lidar_stages.h"
+#include "locforge/plugin.h"
 
 namespace locforge::lidar {
 
+// The i-th pose of the TUM file belongs to the i-th scan in file-name order.
+struct PcdKeyframesOptions {
+  std::string scans;        // folder of .pcd / .ply files
+  std::string poses;        // TUM file (timestamp tx ty tz qx qy qz qw, T_world_lidar); "": none
+  double period_s = 0.1;    // between scans when there is no TUM file
+  std::string sequence = "seq";
+  double voxel_m = 0;       // 0 keeps the points as they are
+  double min_range_m = 0, max_range_m = 1e9;
+  static void Declare(ParamSchema<PcdKeyframesOptions>& s) {
+    using O = PcdKeyframesOptions;
+    s.Add("scans", &O::scans, "Folder of keyframe clouds (.pcd/.ply, sensor frame, file-name order)")
+        .Path()
+        .Required();
+    s.Add("poses", &O::poses,
+          "TUM file: timestamps and reference poses (world <- lidar), i-th line for the i-th scan")
+        .Path();
+    s.Add("period_s", &O::period_s, "Seconds between scans when no TUM file is given").Range(1e-6, 1e6);
+    s.Add("sequence", &O::sequence, "Sequence name (folder of the records)");
+    s.Add("voxel_m", &O::voxel_m, "Voxel downsampling (m); 0: none").Range(0, 10);
+    s.Add("min_range_m", &O::min_range_m, "Closer returns are dropped (m)").Min(0);
+    s.Add("max_range_m", &O::max_range_m, "Farther returns are dropped (m)").Min(0);
+  }
+  bool Check(std::string* why) const;
+};
+
+class PcdKeyframes : public Stage<PcdKeyframesOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta{"source", "pcd_keyframes",
+                   "Folder of LiDAR keyframes (+ TUM timestamps / reference poses) as a scans kapture",
+                   {},
+                   {{"scans", "kapture.dataset",
+                     "records_lidar.txt of device 'scan' + one PCD per keyframe; trajectories.txt: the "
+                     "reference poses (device rig) when a TUM file is given"}}};
+    meta.version = "0.7.0";
+    return meta;
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
+
 bool PcdKeyframesOptions::Check(std::string* why) const {
-  if (max_range <= min_range) {
-    if (why) *why = "max_range must be larger than min_range";
+  if (max_range_m <= min_range_m) {
+    if (why) *why = "max_range_m must be larger than min_range_m";
     return false;
   }
   if (sequence.empty() || sequence.find('/') != std::string::npos || sequence == "." || sequence == "..") {
@@ -89,10 +130,10 @@ void PcdKeyframes::Run(RunContext& ctx) {
     kept.points.reserve(scan.size());
     for (const auto& p : scan.points) {
       const float r = p.norm();
-      if (r >= o.min_range && r <= o.max_range) kept.points.push_back(p);
+      if (r >= o.min_range_m && r <= o.max_range_m) kept.points.push_back(p);
     }
-    if (o.voxel > 0) kept = VoxelDownsample(kept, o.voxel);
-    const Timestamp t = poses.empty() ? static_cast<Timestamp>(std::llround(i * o.period * 1e6)) : poses[i].timestamp;
+    if (o.voxel_m > 0) kept = VoxelDownsample(kept, o.voxel_m);
+    const Timestamp t = poses.empty() ? static_cast<Timestamp>(std::llround(i * o.period_s * 1e6)) : poses[i].timestamp;
     const std::string rel = "undistorted/" + o.sequence + "/" + files[i].stem().string() + ".pcd";
     WritePcd(out / kapture::layout::kRecordsData / rel, kept);
     records.push_back({t, "scan", rel});
@@ -111,5 +152,7 @@ void PcdKeyframes::Run(RunContext& ctx) {
   ctx.Info("pcd_keyframes: " + std::to_string(files.size()) + " scans, " + std::to_string(points) + " points" +
            (poses.empty() ? std::string() : ", reference poses from " + o.poses));
 }
+
+LOCFORGE_EXPORT_STAGE(AddPcdKeyframes, PcdKeyframes)
 
 }  // namespace locforge::lidar

@@ -29,11 +29,27 @@ bool ParseInitialPose(const std::string& entry, std::string* sequence, Pose* sta
   return true;
 }
 
-Slam::Slam(const PoseGraphSlamOptions& options, const WheelOdometry* odometry, Registrar registrar, Registrar refine,
+bool SlamOptions::Check(std::string* why) const {
+  for (const auto& p : initial_poses) {
+    std::string seq;
+    Pose start;
+    if (!ParseInitialPose(p, &seq, &start)) {
+      if (why) *why = "initial_poses: '" + p + "' is not 'sequence x_m y_m yaw_deg'";
+      return false;
+    }
+  }
+  if (unjoined != "error" && unjoined != "separate") {
+    if (why) *why = "unjoined: '" + unjoined + "' is not error or separate";
+    return false;
+  }
+  return true;
+}
+
+Slam::Slam(const SlamOptions& options, const WheelOdometry* odometry, Registrar registrar, Registrar refine,
            int threads, SlamHooks hooks)
     : o_(options),
       odometry_(odometry),
-      motion_(odometry, options.max_scan_gap, options.seconds_per_unit),
+      motion_(odometry, options.max_scan_gap_s, options.seconds_per_unit),
       registrar_(std::move(registrar)),
       refine_registrar_(std::move(refine)),
       threads_(threads),
@@ -44,13 +60,13 @@ void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::funct
   for (const auto& p : o_.initial_poses) {
     std::string seq;
     Pose start;
-    if (!ParseInitialPose(p, &seq, &start))  // also refused by PoseGraphSlamOptions::Check
+    if (!ParseInitialPose(p, &seq, &start))  // also refused by SlamOptions::Check
       throw ParamError("initial_poses: '" + p + "' is not 'sequence x y yaw_deg'");
     corrections[seq] = start;
   }
   ScanContextOptions sco;
   std::map<std::string, Pose> start_poses;
-  for (const KeyframeChoice& c : ChooseKeyframes(scans, motion_, o_.keyframe_distance, o_.keyframe_angle)) {
+  for (const KeyframeChoice& c : ChooseKeyframes(scans, motion_, o_.keyframe_distance_m, o_.keyframe_angle_deg)) {
     const ScanStamp& s = scans[c.scan];
     Keyframe kf;
     kf.id = static_cast<int>(keyframes_.size());
@@ -58,7 +74,7 @@ void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::funct
     kf.sequence = s.sequence;
     kf.travelled = c.travelled;
     kf.cloud = read(c.scan);
-    kf.rough = VoxelDownsample(kf.cloud, o_.loop_rough_voxel);
+    kf.rough = VoxelDownsample(kf.cloud, o_.loop_rough_voxel_m);
     kf.context = MakeScanContext(kf.cloud, sco);
     // Initial pose: the sequence's start (identity, or the manual correction)
     // x odometry (constant velocity: chained by the sequential registrations).
@@ -81,8 +97,8 @@ void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::funct
     throw InputError("records_lidar.txt", 0, "records_lidar",
                      odometry_ ? "no scan covered by odometry" : "no scan");
   if (o_.planar) {
-    graph_.planar_sigma_z = o_.planar_sigma_z;
-    graph_.planar_sigma_tilt = o_.planar_sigma_tilt * M_PI / 180;
+    graph_.planar_sigma_z = o_.planar_sigma_z_m;
+    graph_.planar_sigma_tilt = o_.planar_sigma_tilt_deg * M_PI / 180;
   }
 }
 
@@ -104,14 +120,14 @@ Pose Slam::MotionGuess(size_t i) const {
 }
 
 // The back-end's Hessian in the edge's coordinates, rescaled so its best
-// directions have the sigmas (PoseGraphSlamOptions); fixed sigmas when asked
+// directions have the sigmas (SlamOptions); fixed sigmas when asked
 // for or when the Hessian is unusable.
 Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) {
-  const double sigma_r = o_.sigma_rotation * M_PI / 180;
-  const Matrix6d fixed = DiagonalInformation(o_.sigma_translation, sigma_r);
+  const double sigma_r = o_.sigma_rotation_deg * M_PI / 180;
+  const Matrix6d fixed = DiagonalInformation(o_.sigma_translation_m, sigma_r);
   if (o_.edge_information == "fixed") return fixed;
   Matrix6d out;
-  if (!NormalizeInformation(RegistrationInformationToEdge(r.information, T_ab), o_.sigma_translation, sigma_r,
+  if (!NormalizeInformation(RegistrationInformationToEdge(r.information, T_ab), o_.sigma_translation_m, sigma_r,
                             o_.information_max_ratio, &out)) {
     ++stats_.information_fallbacks;
     return fixed;
@@ -123,10 +139,10 @@ Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) {
 // its pose and information when it converged near `first`, else `first`;
 // `first`'s overlap is kept (acceptance is decided on the first pass).
 RegistrationResult Slam::Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target) {
-  if (o_.refine_correspondence_distance <= 0) return first;
+  if (o_.refine_correspondence_distance_m <= 0) return first;
   RegistrationResult fine = refine_registrar_(source, target, first.T_target_source);
   const double moved = (fine.T_target_source.t - first.T_target_source.t).norm();
-  if (!fine.converged || moved > o_.refine_correspondence_distance) {
+  if (!fine.converged || moved > o_.refine_correspondence_distance_m) {
     ++stats_.refinements_rejected;
     return first;
   }
@@ -139,7 +155,7 @@ LoopCheckOptions Slam::LoopOptions(double rough_error) const {
   LoopCheckOptions lo;
   lo.rough_overlap = o_.loop_rough_overlap;
   lo.rough_error_m = rough_error;
-  lo.max_guess_distance_m = o_.loop_radius;
+  lo.max_guess_distance_m = o_.loop_radius_m;
   lo.overlap = o_.loop_overlap;
   return lo;
 }
@@ -154,7 +170,7 @@ std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyfram
 }
 
 void Slam::AddSequentialEdges() {
-  const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation, 5 * o_.sigma_rotation * M_PI / 180);
+  const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation_m, 5 * o_.sigma_rotation_deg * M_PI / 180);
   for (size_t i = 1; i < keyframes_.size(); ++i) {
     hooks_.check_cancelled();
     const Keyframe& a = keyframes_[i - 1];
@@ -173,7 +189,7 @@ void Slam::AddSequentialEdges() {
       for (const Pose& g : candidates) {
         const RegistrationResult c = registrar_(b.cloud, a.cloud, g);
         const bool c_ok = c.converged && c.inlier_fraction >= o_.min_overlap &&
-                          (c.T_target_source.t - g.t).norm() < o_.max_guess_deviation;
+                          (c.T_target_source.t - g.t).norm() < o_.max_guess_deviation_m;
         if (c_ok && (!ok || c.inlier_fraction > r.inlier_fraction)) {
           r = c;
           guess = g;
@@ -199,14 +215,14 @@ void Slam::AddSequentialEdges() {
     graph_.edges.push_back(e);
     // Odometry edge beside the registration one: constrains what scans leave
     // free (along corridors), sigma proportional to the distance driven.
-    if (ok && odometry_ && o_.odometry_sigma > 0) {
+    if (ok && odometry_ && o_.odometry_sigma_m_per_m > 0) {
       PoseGraphEdge odo = e;
       odo.T_from_to = guess;
       const double d = std::max(motion_.Distance(a.timestamp, b.timestamp), 0.05);
       // Turning in place: wheel-radius and axle errors scale the turned angle (5 % here).
       const double turned = Eigen::AngleAxisd(guess.q).angle();
-      odo.information = DiagonalInformation(o_.odometry_sigma * d,
-                                            o_.odometry_sigma_rotation * M_PI / 180 * d + 0.05 * turned);
+      odo.information = DiagonalInformation(o_.odometry_sigma_m_per_m * d,
+                                            o_.odometry_sigma_rotation_deg_per_m * M_PI / 180 * d + 0.05 * turned);
       graph_.edges.push_back(odo);
     }
     graph_.nodes[b.id] = graph_.nodes[a.id] * e.T_from_to;  // chain the initial estimate
@@ -232,8 +248,8 @@ int Slam::AddLoopEdges() {
   std::vector<int> component(keyframes_.size());
   for (size_t i = 0; i < keyframes_.size(); ++i) component[i] = component_.at(keyframes_[i].sequence);
   LoopSearchOptions lo;
-  lo.radius_m = o_.loop_radius;
-  lo.min_travel_m = o_.loop_min_travel;
+  lo.radius_m = o_.loop_radius_m;
+  lo.min_travel_m = o_.loop_min_travel_m;
   lo.stride = o_.loop_stride;
   const auto candidates = LoopCandidates(keyframes_, graph_.nodes, component, lo);
   int added = 0;
@@ -319,7 +335,7 @@ Pose Slam::PoseAt(Timestamp t, bool* found, const Keyframe** from) const {
   const Keyframe* next = after != keyframes_.end() ? &*after : nullptr;
   if (!odometry_) {
     auto near = [&](const Keyframe* k) {
-      return k && std::abs(static_cast<double>(t - k->timestamp)) * o_.seconds_per_unit <= o_.max_scan_gap;
+      return k && std::abs(static_cast<double>(t - k->timestamp)) * o_.seconds_per_unit <= o_.max_scan_gap_s;
     };
     const bool nb = near(before), nn = near(next);
     *found = nb || nn;

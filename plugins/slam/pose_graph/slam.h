@@ -20,7 +20,7 @@
 #include "locforge/kapture/types.h"
 #include "loop_search.h"
 #include "pose_graph.h"
-#include "lidar_stages.h"
+#include "slam_options.h"
 
 namespace locforge::lidar {
 
@@ -74,7 +74,7 @@ class Slam {
   // odometry: null for motion_prior constant_velocity. `registrar` runs every
   // registration; `refine` the final pass of refine_correspondence_distance
   // (unused when that is 0).
-  Slam(const PoseGraphSlamOptions& options, const WheelOdometry* odometry, Registrar registrar, Registrar refine,
+  Slam(const SlamOptions& options, const WheelOdometry* odometry, Registrar registrar, Registrar refine,
        int threads, SlamHooks hooks);
 
   // Keyframes of `scans` (time order; read(i) loads scan i in the rig frame).
@@ -119,7 +119,7 @@ class Slam {
   const FloorGrid& FloorOf(int component);
   void CheckFinalJoins();
 
-  const PoseGraphSlamOptions& o_;
+  const SlamOptions& o_;
   const WheelOdometry* odometry_;
   MotionModel motion_;
   Registrar registrar_, refine_registrar_;

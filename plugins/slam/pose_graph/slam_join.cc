@@ -43,7 +43,7 @@ std::string Slam::NameOf(int component) const {
 
 FloorGrid Slam::MakeFloor(const std::vector<const Keyframe*>& kfs) const {
   FloorGridOptions fo;
-  fo.agreement_margin_m = o_.join_free_space_margin;
+  fo.agreement_margin_m = o_.join_free_space_margin_m;
   Eigen::AlignedBox2d box;
   for (const Keyframe* k : kfs) {
     const Eigen::Vector2d p = graph_.nodes.at(k->id).t.head<2>();
@@ -112,7 +112,7 @@ bool Slam::TryJoin(int A, int B, int round) {
   const std::vector<const Keyframe*> ka = KeyframesOf(A), kb = KeyframesOf(B);
   auto nearest_a = [&](const Eigen::Vector3d& p) -> const Keyframe* {
     const Keyframe* best = nullptr;
-    double best_d = o_.loop_radius;
+    double best_d = o_.loop_radius_m;
     for (const Keyframe* a : ka) {
       const double d = (graph_.nodes.at(a->id).t - p).norm();
       if (d <= best_d) best_d = d, best = a;
@@ -150,7 +150,7 @@ bool Slam::TryJoin(int A, int B, int round) {
   const Eigen::Vector3d p0 = graph_.nodes.at(kb.front()->id).t;
   std::vector<const Keyframe*> near_start;
   for (const Keyframe* b : kb)
-    if ((graph_.nodes.at(b->id).t - p0).norm() <= o_.join_seed_radius) near_start.push_back(b);
+    if ((graph_.nodes.at(b->id).t - p0).norm() <= o_.join_seed_radius_m) near_start.push_back(b);
   std::stable_sort(near_start.begin(), near_start.end(), [&](const Keyframe* x, const Keyframe* y) {
     return (graph_.nodes.at(x->id).t - p0).norm() < (graph_.nodes.at(y->id).t - p0).norm();
   });
@@ -196,15 +196,15 @@ bool Slam::TryJoin(int A, int B, int round) {
 
   // The frames suggested, judged by the whole overlap.
   JoinConsensusOptions agreement;
-  agreement.max_translation = o_.join_max_translation;
-  agreement.max_rotation_deg = o_.join_max_rotation;
+  agreement.max_translation = o_.join_max_translation_m;
+  agreement.max_rotation_deg = o_.join_max_rotation_deg;
   std::vector<JoinHypothesis> hypotheses = ClusterHypotheses(candidates, agreement);
   const FloorGrid& fa = FloorOf(A);
   const FloorGrid& fb = FloorOf(B);
   for (auto& h : hypotheses) h.evidence = EvaluateJoin(fa, fb, h.T_A_B);
   JoinDecisionOptions jo;
   jo.max_conflict = o_.join_max_conflict;
-  jo.min_agreeing = std::max<int64_t>(1, std::llround(o_.join_min_overlap / fa.options().cell_m));
+  jo.min_agreeing = std::max<int64_t>(1, std::llround(o_.join_min_overlap_m / fa.options().cell_m));
   jo.rival_conflict_ratio = o_.join_rival_conflict_ratio;
   jo.rival_conflict_margin = o_.join_rival_conflict_margin;
   jo.rival_overlap = o_.join_rival_overlap;
@@ -323,7 +323,7 @@ void Slam::CheckFinalJoins() {
   for (const auto& kf : keyframes_)
     if (sequences.empty() || sequences.back() != kf.sequence) sequences.push_back(kf.sequence);
   const int64_t min_agreeing =
-      std::max<int64_t>(1, std::llround(o_.join_min_overlap / FloorGridOptions{}.cell_m));
+      std::max<int64_t>(1, std::llround(o_.join_min_overlap_m / FloorGridOptions{}.cell_m));
   sequence_joins_.clear();
   for (const std::string& seq : sequences) {
     SequenceJoin j;

@@ -88,7 +88,7 @@ std::string UnjoinedMessage(const Slam& slam) {
   return s.str();
 }
 
-std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& o,
+std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
                              const std::vector<kapture::DataRecord>& scans, const kapture::Kapture& dataset,
                              const fs::path& out, std::chrono::steady_clock::time_point start) {
   const auto outputs_start = std::chrono::steady_clock::now();
@@ -134,7 +134,7 @@ std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& o,
     Transform(graph.nodes.at(kf.id), &c);
     map.points.insert(map.points.end(), c.points.begin(), c.points.end());
   }
-  map = VoxelDownsample(map, o.map_voxel);
+  map = VoxelDownsample(map, o.map_voxel_m);
   WritePcd(out / "map.pcd", map);
   WritePly(out / "map.ply", map);
   WriteG2o(out / "pose_graph.g2o", graph);
@@ -163,7 +163,7 @@ std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& o,
   }
   std::set<std::string> sequences;
   for (const auto& kf : keyframes) sequences.insert(kf.sequence);
-  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius);
+  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius_m);
   std::ostringstream loops_json;
   loops_json.precision(16);
   for (const auto& e : graph.edges) {
@@ -206,7 +206,7 @@ std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& o,
     << ",\n  \"final_cost\": " << st.summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
     << ",\n  \"information_fallbacks\": " << st.information_fallbacks << ",\n  \"refinements\": " << st.refinements
     << ",\n  \"refinements_rejected\": " << st.refinements_rejected << ",\n  \"map_points\": " << map.size()
-    << ",\n  \"map_plane_residual\": {\"k\": " << o.map_residual_k << ", \"radius\": " << o.map_residual_radius
+    << ",\n  \"map_plane_residual\": {\"k\": " << o.map_residual_k << ", \"radius\": " << o.map_residual_radius_m
     << ", \"points\": " << crisp.points << ", \"skipped\": " << crisp.skipped << ", \"mean\": " << crisp.mean
     << ", \"median\": " << crisp.median << ", \"rmse\": " << crisp.rmse << ", \"p90\": " << crisp.p90 << "}"
     << ",\n  \"join_attempts_detail\": [" << joins_json.str() << "\n  ]"

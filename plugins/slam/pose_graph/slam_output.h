@@ -21,7 +21,7 @@ std::string JoinsCsv(const Slam& slam);
 // camera records); scans: the scan records the keyframes came from.
 // `start`: when the stage started (slam.json's times). Returns the one-line
 // summary for the log.
-std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& options,
+std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& options,
                              const std::vector<kapture::DataRecord>& scans, const kapture::Kapture& dataset,
                              const fs::path& out, std::chrono::steady_clock::time_point start);
 
