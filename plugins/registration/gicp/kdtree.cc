@@ -13,12 +13,21 @@ constexpr int kLeafSize = 12;
 KdTree::KdTree(const Points& points) : points_(points), order_(points.size()) {
   std::iota(order_.begin(), order_.end(), 0);
   nodes_.reserve(2 * points.size() / kLeafSize + 2);
-  if (!points.empty()) Build(0, static_cast<int>(points.size()));
+  if (points.empty()) return;
+  Build(0, static_cast<int>(points.size()));
+  for (size_t i = 0; i < points.size(); ++i) points_[i] = points[order_[i]];
+  lo_ = hi_ = points_[0];
+  for (const Eigen::Vector3d& p : points_) {
+    lo_ = lo_.cwiseMin(p);
+    hi_ = hi_.cwiseMax(p);
+  }
 }
 
+// Built on order_ (indices into points_, still in input order), so nth_element
+// moves 4-byte indices; the constructor gathers the points afterwards.
 int KdTree::Build(int begin, int end) {
   const int id = static_cast<int>(nodes_.size());
-  nodes_.push_back(Node{begin, end});
+  nodes_.push_back(Node{-1, begin, end});
   if (end - begin <= kLeafSize) return id;
   Eigen::Vector3d lo = points_[order_[begin]], hi = lo;
   for (int i = begin + 1; i < end; ++i) {
@@ -28,85 +37,104 @@ int KdTree::Build(int begin, int end) {
   int axis;
   (hi - lo).maxCoeff(&axis);
   const int mid = begin + (end - begin) / 2;
-  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
-                   [&](int a, int b) { return points_[a][axis] < points_[b][axis]; });
-  const double split = points_[order_[mid]][axis];
-  const int left = Build(begin, mid);
+  const auto less = [&](int a, int b) { return points_[a][axis] < points_[b][axis]; };
+  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end, less);
+  const double high = points_[order_[mid]][axis];  // the right half's smallest
+  const double low = points_[*std::max_element(order_.begin() + begin, order_.begin() + mid, less)][axis];
+  Build(begin, mid);  // the left child is node id + 1
   const int right = Build(mid, end);
   Node& n = nodes_[id];
   n.axis = axis;
-  n.split = split;
-  n.left = left;
+  n.low = low;
+  n.high = high;
   n.right = right;
   return id;
 }
 
-// Depth-first descent, nearer child first; `v.bound()` is the current
-// squared search radius and `v.Add(i, d2)` offers a candidate.
+// Depth-first descent, nearer child first, pruned with an incremental lower
+// bound of the squared distance to a node's cell (nanoflann's trick):
+// `axis_sq_dist` holds, per axis, the squared distance from q to the cell's
+// slab, and `min_sq_dist` their sum. `v.bound()` is the current squared
+// search radius; `v.Add(i, d2)` offers the point at tree position i.
 template <typename Visitor>
-void KdTree::Search(int node, const Eigen::Vector3d& q, Visitor& v) const {
+void KdTree::Search(int node, const Eigen::Vector3d& q, double min_sq_dist, Eigen::Vector3d& axis_sq_dist,
+                    Visitor& v) const {
   const Node& n = nodes_[node];
   if (n.axis < 0) {
-    for (int i = n.begin; i < n.end; ++i) {
-      const int idx = order_[i];
-      v.Add(idx, (points_[idx] - q).squaredNorm());
-    }
+    for (int i = n.begin; i < n.end; ++i) v.Add(i, (points_[i] - q).squaredNorm());
     return;
   }
-  const double diff = q[n.axis] - n.split;
-  const int near = diff < 0 ? n.left : n.right;
-  const int far = diff < 0 ? n.right : n.left;
-  Search(near, q, v);
-  if (diff * diff < v.bound()) Search(far, q, v);
+  const double to_low = q[n.axis] - n.low, to_high = q[n.axis] - n.high;
+  const bool left_first = to_low + to_high < 0;  // q nearer the left child's side of the gap
+  const double cut = left_first ? to_high * to_high : to_low * to_low;
+  Search(left_first ? node + 1 : n.right, q, min_sq_dist, axis_sq_dist, v);
+  const double saved = axis_sq_dist[n.axis];
+  min_sq_dist += cut - saved;
+  if (min_sq_dist < v.bound()) {
+    axis_sq_dist[n.axis] = cut;
+    Search(left_first ? n.right : node + 1, q, min_sq_dist, axis_sq_dist, v);
+    axis_sq_dist[n.axis] = saved;
+  }
+}
+
+template <typename Visitor>
+void KdTree::SearchFromRoot(const Eigen::Vector3d& q, Visitor& v) const {
+  // Per-axis squared distance from q to the bounding box.
+  Eigen::Vector3d axis_sq_dist = (q.cwiseMax(lo_).cwiseMin(hi_) - q).cwiseAbs2();
+  const double min_sq_dist = axis_sq_dist.sum();
+  if (min_sq_dist < v.bound()) Search(0, q, min_sq_dist, axis_sq_dist, v);
 }
 
 bool KdTree::Nearest(const Eigen::Vector3d& q, double max_sq_dist, int* index,
                      double* sq_dist) const {
   struct Best {
     double d2;
-    int idx = -1;
+    int pos = -1;
     double bound() const { return d2; }
     void Add(int i, double d) {
       if (d < d2) {
         d2 = d;
-        idx = i;
+        pos = i;
       }
     }
   } best{max_sq_dist};
   if (nodes_.empty()) return false;
-  Search(0, q, best);
-  if (best.idx < 0) return false;
-  *index = best.idx;
+  SearchFromRoot(q, best);
+  if (best.pos < 0) return false;
+  *index = order_[best.pos];
   *sq_dist = best.d2;
   return true;
 }
 
 void KdTree::KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
                       std::vector<double>* sq_dists) const {
-  // A sorted array of the k best so far (k is small: insertion is cheapest).
+  // The k best so far, sorted, in caller-provided arrays (k is small:
+  // insertion from the back is cheapest).
   struct KBest {
-    int k;
-    std::vector<int>* idx;
-    std::vector<double>* d2;
-    double bound() const {
-      return static_cast<int>(d2->size()) < k ? std::numeric_limits<double>::infinity()
-                                              : d2->back();
-    }
+    int k, n = 0;
+    int* pos;
+    double* d2;
+    double bound() const { return n < k ? std::numeric_limits<double>::infinity() : d2[k - 1]; }
     void Add(int i, double d) {
       if (d >= bound()) return;
-      if (static_cast<int>(d2->size()) == k) {
-        d2->pop_back();
-        idx->pop_back();
+      int j = n < k ? n++ : k - 1;
+      for (; j > 0 && d2[j - 1] > d; --j) {
+        d2[j] = d2[j - 1];
+        pos[j] = pos[j - 1];
       }
-      const auto at = std::upper_bound(d2->begin(), d2->end(), d);
-      idx->insert(idx->begin() + (at - d2->begin()), i);
-      d2->insert(at, d);
+      d2[j] = d;
+      pos[j] = i;
     }
-  } best{k, indices, sq_dists};
-  indices->clear();
-  sq_dists->clear();
-  if (nodes_.empty() || k <= 0) return;
-  Search(0, q, best);
+  };
+  k = std::max(0, std::min(k, static_cast<int>(points_.size())));
+  indices->resize(k);
+  sq_dists->resize(k);
+  if (k == 0) return;
+  KBest best{k, 0, indices->data(), sq_dists->data()};
+  SearchFromRoot(q, best);
+  indices->resize(best.n);
+  sq_dists->resize(best.n);
+  for (int& i : *indices) i = order_[i];
 }
 
 }  // namespace locforge::gicp

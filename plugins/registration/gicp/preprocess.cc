@@ -40,33 +40,55 @@ Points VoxelDownsample(const Points& points, double voxel_size) {
   return sum;
 }
 
+namespace {
+
+// Plane-regularised covariance of `n` neighbours (one pass: sums of the
+// offsets d from the query point and of d d^T; the offsets are small, so the
+// cancellation in E[d d^T] - E[d] E[d]^T is harmless).
+Eigen::Matrix3d PlaneCovariance(const Points& points, const Eigen::Vector3d& q, const int* idx, int n,
+                                double epsilon) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d sum_sq = Eigen::Matrix3d::Zero();
+  for (int j = 0; j < n; ++j) {
+    const Eigen::Vector3d d = points[idx[j]] - q;
+    sum += d;
+    sum_sq.noalias() += d * d.transpose();
+  }
+  const Eigen::Vector3d mean = sum / n;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(sum_sq / n - mean * mean.transpose());
+  // Eigenvalues ascending: the first eigenvector is the surface normal, and
+  // V diag(epsilon, 1, 1) V^T = I - (1 - epsilon) n n^T.
+  const Eigen::Vector3d normal = eig.eigenvectors().col(0);
+  return Eigen::Matrix3d::Identity() - (1 - epsilon) * normal * normal.transpose();
+}
+
+}  // namespace
+
 Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k, double epsilon,
                                 int threads) {
   Covariances out(points.size());
+  const std::vector<int>& order = tree.order();
 #pragma omp parallel num_threads(threads)
   {
     std::vector<int> idx;
     std::vector<double> d2;
 #pragma omp for schedule(static)
-    for (int64_t i = 0; i < static_cast<int64_t>(points.size()); ++i) {
+    for (int64_t t = 0; t < static_cast<int64_t>(order.size()); ++t) {
+      const int i = order[t];  // in tree order: successive queries are neighbours
       tree.KNearest(points[i], k, &idx, &d2);
-      if (idx.size() < 3) {
-        out[i] = Eigen::Matrix3d::Identity();
-        continue;
-      }
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (int j : idx) mean += points[j];
-      mean /= static_cast<double>(idx.size());
-      Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
-      for (int j : idx) c += (points[j] - mean) * (points[j] - mean).transpose();
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-      eig.computeDirect(c / static_cast<double>(idx.size()));
-      // Eigenvalues ascending: the first eigenvector is the surface normal.
-      const Eigen::Vector3d values(epsilon, 1.0, 1.0);
-      out[i] = eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
+      out[i] = idx.size() < 3 ? Eigen::Matrix3d::Identity()
+                              : PlaneCovariance(points, points[i], idx.data(), static_cast<int>(idx.size()), epsilon);
     }
   }
   return out;
+}
+
+PreprocessedCloud Preprocess(const PointCloud& cloud, const PreprocessOptions& o, int threads) {
+  Points points = VoxelDownsample(ToPoints(cloud), o.voxel_size);
+  KdTree tree(points);
+  Covariances covariances = EstimateCovariances(points, tree, o.k_neighbors, o.covariance_epsilon, threads);
+  return PreprocessedCloud{std::move(points), std::move(tree), std::move(covariances)};
 }
 
 }  // namespace locforge::gicp
