@@ -10,39 +10,45 @@ namespace {
 constexpr int kLeafSize = 12;
 }
 
-KdTree::KdTree(const Points& points) : points_(points), order_(points.size()) {
+KdTree::KdTree(const Points& points) : order_(points.size()) {
   std::iota(order_.begin(), order_.end(), 0);
   nodes_.reserve(2 * points.size() / kLeafSize + 2);
   if (points.empty()) return;
-  Build(0, static_cast<int>(points.size()));
-  for (size_t i = 0; i < points.size(); ++i) points_[i] = points[order_[i]];
-  lo_ = hi_ = points_[0];
-  for (const Eigen::Vector3d& p : points_) {
+  Build(points, 0, static_cast<int>(points.size()));
+  x_.resize(points.size());
+  y_.resize(points.size());
+  z_.resize(points.size());
+  lo_ = hi_ = points[0];
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d& p = points[order_[i]];
+    x_[i] = p.x();
+    y_[i] = p.y();
+    z_[i] = p.z();
     lo_ = lo_.cwiseMin(p);
     hi_ = hi_.cwiseMax(p);
   }
 }
 
-// Built on order_ (indices into points_, still in input order), so nth_element
-// moves 4-byte indices; the constructor gathers the points afterwards.
-int KdTree::Build(int begin, int end) {
+// Built on order_ (indices into `points`), so nth_element moves 4-byte
+// indices; the constructor gathers the points afterwards.
+int KdTree::Build(const Points& points, int begin, int end) {
   const int id = static_cast<int>(nodes_.size());
   nodes_.push_back(Node{-1, begin, end});
   if (end - begin <= kLeafSize) return id;
-  Eigen::Vector3d lo = points_[order_[begin]], hi = lo;
+  Eigen::Vector3d lo = points[order_[begin]], hi = lo;
   for (int i = begin + 1; i < end; ++i) {
-    lo = lo.cwiseMin(points_[order_[i]]);
-    hi = hi.cwiseMax(points_[order_[i]]);
+    lo = lo.cwiseMin(points[order_[i]]);
+    hi = hi.cwiseMax(points[order_[i]]);
   }
   int axis;
   (hi - lo).maxCoeff(&axis);
   const int mid = begin + (end - begin) / 2;
-  const auto less = [&](int a, int b) { return points_[a][axis] < points_[b][axis]; };
+  const auto less = [&](int a, int b) { return points[a][axis] < points[b][axis]; };
   std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end, less);
-  const double high = points_[order_[mid]][axis];  // the right half's smallest
-  const double low = points_[*std::max_element(order_.begin() + begin, order_.begin() + mid, less)][axis];
-  Build(begin, mid);  // the left child is node id + 1
-  const int right = Build(mid, end);
+  const double high = points[order_[mid]][axis];  // the right half's smallest
+  const double low = points[*std::max_element(order_.begin() + begin, order_.begin() + mid, less)][axis];
+  Build(points, begin, mid);  // the left child is node id + 1
+  const int right = Build(points, mid, end);
   Node& n = nodes_[id];
   n.axis = axis;
   n.low = low;
@@ -61,7 +67,16 @@ void KdTree::Search(int node, const Eigen::Vector3d& q, double min_sq_dist, Eige
                     Visitor& v) const {
   const Node& n = nodes_[node];
   if (n.axis < 0) {
-    for (int i = n.begin; i < n.end; ++i) v.Add(i, (points_[i] - q).squaredNorm());
+    // All distances of the leaf first (a loop the compiler vectorises), then the offers.
+    double d2[kLeafSize];
+    const int m = n.end - n.begin;
+    const double *x = &x_[n.begin], *y = &y_[n.begin], *z = &z_[n.begin];
+    for (int i = 0; i < m; ++i) {
+      const double dx = x[i] - q.x(), dy = y[i] - q.y(), dz = z[i] - q.z();
+      d2[i] = dx * dx + dy * dy + dz * dz;
+    }
+    for (int i = 0; i < m; ++i)
+      if (d2[i] < v.bound()) v.Add(n.begin + i, d2[i]);
     return;
   }
   const double to_low = q[n.axis] - n.low, to_high = q[n.axis] - n.high;
@@ -114,9 +129,10 @@ void KdTree::KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices
     int k, n = 0;
     int* pos;
     double* d2;
-    double bound() const { return n < k ? std::numeric_limits<double>::infinity() : d2[k - 1]; }
+    double worst = std::numeric_limits<double>::infinity();  // d2[k - 1] once full
+    double bound() const { return worst; }
     void Add(int i, double d) {
-      if (d >= bound()) return;
+      if (d >= worst) return;
       int j = n < k ? n++ : k - 1;
       for (; j > 0 && d2[j - 1] > d; --j) {
         d2[j] = d2[j - 1];
@@ -124,9 +140,10 @@ void KdTree::KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices
       }
       d2[j] = d;
       pos[j] = i;
+      if (n == k) worst = d2[k - 1];
     }
   };
-  k = std::max(0, std::min(k, static_cast<int>(points_.size())));
+  k = std::max(0, std::min(k, static_cast<int>(size())));
   indices->resize(k);
   sq_dists->resize(k);
   if (k == 0) return;

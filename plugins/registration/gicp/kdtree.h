@@ -15,8 +15,9 @@ using Points = std::vector<Eigen::Vector3d>;
 
 class KdTree {
  public:
-  // Keeps its own copy of `points` in tree order (each leaf contiguous);
-  // searches return indices into `points`.
+  // Keeps its own copy of `points` in tree order (each leaf contiguous, one
+  // array per axis so a leaf's distances vectorise); searches return indices
+  // into `points`.
   explicit KdTree(const Points& points);
 
   // Index of the nearest point and its squared distance; false when no point
@@ -27,7 +28,7 @@ class KdTree {
   void KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
                 std::vector<double>* sq_dists) const;
 
-  size_t size() const { return points_.size(); }
+  size_t size() const { return order_.size(); }
   // Input indices in tree order: visiting points in this order keeps
   // successive queries close to each other.
   const std::vector<int>& order() const { return order_; }
@@ -37,19 +38,19 @@ class KdTree {
   // points with coordinate <= low, the right child those >= high.
   struct Node {
     int axis = -1;  // -1 for a leaf
-    int begin = 0, end = 0;  // leaf: range in points_
+    int begin = 0, end = 0;  // leaf: range in tree order
     int right = -1;
     double low = 0, high = 0;
   };
-  int Build(int begin, int end);
+  int Build(const Points& points, int begin, int end);
   template <typename Visitor>
   void Search(int node, const Eigen::Vector3d& q, double min_sq_dist, Eigen::Vector3d& axis_sq_dist,
               Visitor& v) const;
   template <typename Visitor>
   void SearchFromRoot(const Eigen::Vector3d& q, Visitor& v) const;
 
-  Points points_;           // in tree order
-  std::vector<int> order_;  // input index of each of points_
+  std::vector<double> x_, y_, z_;  // the points in tree order
+  std::vector<int> order_;         // input index of each
   std::vector<Node> nodes_;
   Eigen::Vector3d lo_, hi_;  // bounding box of all points
 };

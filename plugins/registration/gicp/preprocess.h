@@ -19,6 +19,7 @@ Points ToPoints(const PointCloud& cloud);
 // points), in order of first occurrence, so the output is deterministic.
 // voxel_size <= 0 returns the input.
 Points VoxelDownsample(const Points& points, double voxel_size);
+Points VoxelDownsample(const PointCloud& cloud, double voxel_size);  // = of ToPoints(cloud)
 
 // Covariance of each point's k-neighbourhood, regularised to a plane
 // (Segal et al. 2009, GICP, Sec. III-B "plane-to-plane"): the eigenvalues
