@@ -22,6 +22,7 @@ Commands:
   run GRAPH.yaml --workspace D  Runs a graph, cached and resumable
   kapture ...                   Kapture dataset tools
   colmap ...                    COLMAP model tools
+  collect W NODE/FILE           One table of a node's result over a matrix run's variants
   help [COMMAND]                This help, or a command's
 
 Options:
@@ -199,12 +200,13 @@ int Main(const Args& args) {
       std::cout << (rest.empty() ? kMainHelp : HelpText("help"));
       return 0;
     }
+    if (rest.front() == "collect") return CollectCommand({"--help"});
     if (rest.front() == "kapture" || rest.front() == "colmap")
       return rest.front() == "kapture" ? KaptureCommand({"--help"}) : ColmapCommand({"--help"});
     const std::string text = HelpText(rest.front());
     if (text.empty()) {
       const std::string hint =
-          DidYouMean(rest.front(), {"plugins", "validate", "run", "kapture", "colmap"});
+          DidYouMean(rest.front(), {"plugins", "validate", "run", "kapture", "colmap", "collect"});
       return UsageError("help", "no such command '" + rest.front() + "'" +
                                     (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
     }
@@ -215,9 +217,10 @@ int Main(const Args& args) {
   if (command == "validate") return ValidateCommand(rest);
   if (command == "run") return RunCommand(rest);
   if (command == "kapture") return KaptureCommand(rest);
+  if (command == "collect") return CollectCommand(rest);
   if (command == "colmap") return ColmapCommand(rest);
-  const std::vector<std::string> commands = {"plugins", "validate", "run",
-                                             "kapture", "colmap",   "help"};
+  const std::vector<std::string> commands = {"plugins", "validate", "run",  "kapture",
+                                             "colmap",  "collect",  "help"};
   const std::string hint = DidYouMean(command, commands);
   std::cerr << "locforge: unknown command '" << command << "'"
             << (hint.empty() ? "" : " (did you mean '" + hint + "'?)")

@@ -16,6 +16,7 @@ int ValidateCommand(const Args& args);  // validate GRAPH.yaml [--set k=v ...]
 int RunCommand(const Args& args);       // run GRAPH.yaml --workspace DIR ...
 int KaptureCommand(const Args& args);   // kapture info DIR | copy SRC DST   (cmd_kapture.cc)
 int ColmapCommand(const Args& args);    // colmap import|export ...         (cmd_colmap.cc)
+int CollectCommand(const Args& args);   // collect WORKSPACE NODE/FILE       (cmd_collect.cc)
 
 }  // namespace locforge::host
 

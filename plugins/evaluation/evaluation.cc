@@ -188,11 +188,12 @@ std::string ToLatex(const Table& t) {
 }
 
 plot::Series RecallCurve(const std::vector<QueryError>& errors, const std::string& label,
-                         double max_position_m, double angle_per_m, int steps) {
+                         double max_position_m, double angle_per_m, int steps, double log_decades) {
   plot::Series s;
   s.label = label;
   for (int i = 0; i <= steps; ++i) {
-    const double p = max_position_m * i / steps;
+    const double p = log_decades > 0 ? max_position_m * std::pow(10.0, -log_decades * (steps - i) / steps)
+                                     : max_position_m * i / steps;
     s.x.push_back(p);
     s.y.push_back(100 * Recall(errors, {p, angle_per_m * p}));
   }
@@ -203,10 +204,11 @@ plot::Figure RecallFigure(std::vector<plot::Series> curves, const std::string& t
                           double max_position_m, double angle_per_m) {
   plot::Figure f;
   f.title = title;
-  f.x_label = "position threshold (m), angle = " + Num(angle_per_m, 0) + " x m (deg)";
+  f.x_label = "position threshold (m); rotation threshold " + Num(angle_per_m, 0) + "\xC2\xB0 per metre";
   f.y_label = "localized queries (%)";
   f.series = std::move(curves);
-  f.x_min = 0;
+  f.x_log = true;
+  f.x_min = max_position_m * std::pow(10.0, -kRecallDecades);
   f.x_max = max_position_m;
   f.y_min = 0;
   f.y_max = 100;

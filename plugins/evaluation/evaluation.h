@@ -54,9 +54,17 @@ Table FromCsv(const std::string& text, const std::string& file_name);
 // Figure 7's curve: recall (%) with both thresholds varying together,
 // position p in [0, max_position_m] over `steps` intervals and angle
 // threshold = angle_per_m x p (the paper: 10 deg per metre, 1 deg per 10 cm).
+// With log_decades > 0, p runs geometrically over that many decades below
+// max_position_m instead (even steps on RecallFigure's log axis).
 plot::Series RecallCurve(const std::vector<QueryError>& errors, const std::string& label,
-                         double max_position_m, double angle_per_m = 10, int steps = 100);
-// The curves of one or several methods as a figure (SVG or PNG via plot::WriteFigure).
+                         double max_position_m, double angle_per_m = 10, int steps = 100,
+                         double log_decades = 0);
+// Decades of position threshold a recall figure shows: 1 mm to 1 m for the
+// default 1 m, so millimetre ground truth and metre failures both show.
+constexpr double kRecallDecades = 3;
+// The curves of one or several methods as a figure (SVG or PNG via
+// plot::WriteFigure): recall against the position threshold on a log axis
+// over kRecallDecades below max_position_m.
 plot::Figure RecallFigure(std::vector<plot::Series> curves, const std::string& title,
                           double max_position_m, double angle_per_m = 10);
 

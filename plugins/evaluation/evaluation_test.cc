@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "locforge/error.h"
 
 namespace locforge::evaluation {
@@ -70,8 +72,20 @@ TEST(Curve, MatchesRecallAtEachThresholdPair) {
   EXPECT_DOUBLE_EQ(s.y[100], 75);  // the failure never counts
   for (size_t i = 0; i < s.x.size(); ++i)
     EXPECT_DOUBLE_EQ(s.y[i], 100 * Recall(e, {s.x[i], 10 * s.x[i]}));
+  // Geometric thresholds: 50 per decade from 1 mm to 1 m.
+  const plot::Series g = RecallCurve(e, "m", 1.0, 10, 150, 3);
+  ASSERT_EQ(g.x.size(), 151u);
+  EXPECT_NEAR(g.x[0], 0.001, 1e-15);
+  EXPECT_NEAR(g.x[50], 0.01, 1e-15);
+  EXPECT_DOUBLE_EQ(g.x[150], 1.0);
+  for (size_t i = 0; i < g.x.size(); ++i) {
+    EXPECT_DOUBLE_EQ(g.y[i], 100 * Recall(e, {g.x[i], 10 * g.x[i]}));
+    if (i > 0) EXPECT_NEAR(g.x[i] / g.x[i - 1], std::pow(10.0, 1.0 / 50), 1e-12);
+  }
   const plot::Figure f = RecallFigure({s}, "t", 1.0);
   EXPECT_EQ(f.series.size(), 1u);
+  EXPECT_TRUE(f.x_log);
+  EXPECT_DOUBLE_EQ(f.x_min, 0.001);
   EXPECT_DOUBLE_EQ(f.x_max, 1.0);
   EXPECT_DOUBLE_EQ(f.y_max, 100);
   const auto png = plot::RenderPng(f);

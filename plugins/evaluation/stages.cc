@@ -51,7 +51,7 @@ struct EvalOptions {
   std::vector<std::string> splits;  // Splits "NAME=REGEX" on the query image path.
   std::vector<double> positions_m = {0.1, 0.25, 1.0};  // Position thresholds (<=).
   std::vector<double> angles_deg = {1.0, 2.0, 5.0};    // Angle thresholds (<=), paired.
-  double curve_max_m = 1.0;  // Curve x range; angle threshold = 10 x position (m).
+  double curve_max_m = 1.0;  // Curve's largest position threshold (log axis over 3 decades); angle = 10 x position.
 
   static void Declare(ParamSchema<EvalOptions>& s) {
     s.Add("method", &EvalOptions::method, "row label of this method in the tables");
@@ -59,7 +59,7 @@ struct EvalOptions {
     s.Add("splits", &EvalOptions::splits, "splits NAME=REGEX matched on the query image path");
     s.Add("positions_m", &EvalOptions::positions_m, "position thresholds in metres (<=)");
     s.Add("angles_deg", &EvalOptions::angles_deg, "angle thresholds in degrees (<=), one per position");
-    s.Add("curve_max_m", &EvalOptions::curve_max_m, "recall curve up to this position threshold (angle = 10 x metres in degrees)").Min(0.01);
+    s.Add("curve_max_m", &EvalOptions::curve_max_m, "recall curve up to this position threshold, from 1/1000 of it on a log axis (angle = 10 x metres in degrees)").Min(0.01);
   }
   bool Check(std::string* why) const {
     if (positions_m.size() != angles_deg.size() || positions_m.empty())
@@ -145,15 +145,20 @@ class LocalizationEval : public Stage<EvalOptions> {
       per_query.rows.push_back({e.image, e.device, e.group, e.split, e.localized ? "1" : "0",
                                 e.localized ? FormatDouble(e.position_m) : "",
                                 e.localized ? FormatDouble(e.rotation_deg) : ""});
-    // Figure 7: one curve per bucket; curve.csv keeps them for eval/table.
-    std::vector<plot::Series> curves;
+    // Figure 7: one curve per bucket in curve.csv (eval/table reads all/all);
+    // the figure shows all queries, each group and each split (not every
+    // group x split: that many curves would repeat colours).
+    std::vector<plot::Series> curves, shown;
     Table curve_table;
     curve_table.header = {"group", "split", "position_m", "angle_deg", "recall_percent"};
     for (const auto& [key, list] : buckets) {
-      const std::string label = key.first == "all" && key.second == "all"
-                                    ? o.method
-                                    : key.first + "/" + key.second;
-      curves.push_back(RecallCurve(list, label, o.curve_max_m, kAnglePerMetre));
+      // "method", "industrial" (a group, all splits), "test" (a split), "industrial/test".
+      const std::string label = key.first == "all" && key.second == "all" ? o.method
+                                : key.second == "all"                      ? key.first
+                                : key.first == "all"                       ? key.second
+                                                                           : key.first + "/" + key.second;
+      curves.push_back(RecallCurve(list, label, o.curve_max_m, kAnglePerMetre, 150, kRecallDecades));
+      if (key.first == "all" || key.second == "all") shown.push_back(curves.back());
       for (size_t i = 0; i < curves.back().x.size(); ++i)
         curve_table.rows.push_back({key.first, key.second, FormatDouble(curves.back().x[i]),
                                     FormatDouble(kAnglePerMetre * curves.back().x[i]),
@@ -165,7 +170,7 @@ class LocalizationEval : public Stage<EvalOptions> {
     WriteFileAtomic(out / "summary.tex", ToLatex(summary));
     WriteFileAtomic(out / "per_query.csv", ToCsv(per_query));
     WriteFileAtomic(out / "curve.csv", ToCsv(curve_table));
-    const plot::Figure figure = RecallFigure(curves, o.method, o.curve_max_m, kAnglePerMetre);
+    const plot::Figure figure = RecallFigure(shown, o.method, o.curve_max_m, kAnglePerMetre);
     plot::WriteFigure(figure, (out / "curve.svg").string());
     plot::WriteFigure(figure, (out / "curve.png").string());
     ctx.Info(ToMarkdown(summary));
@@ -261,5 +266,5 @@ class CombinedTable : public Stage<TableOptions> {
 }  // namespace
 }  // namespace locforge::evaluation
 
-LOCFORGE_PLUGIN("evaluation", "1.1.0", "Localization evaluation and tables",
+LOCFORGE_PLUGIN("evaluation", "1.2.0", "Localization evaluation and tables",
                 locforge::evaluation::LocalizationEval, locforge::evaluation::CombinedTable)

@@ -24,11 +24,12 @@ bool LidarToLidarOptions::Check(std::string* why) const {
 
 void LidarToLidar::Run(RunContext& ctx) {
   const LidarToLidarOptions& o = options();
-  kapture::Kapture k(o.dataset);
-  const WheelOdometry odometry = WheelOdometry::FromKapture(o.dataset, o.Wheels());
+  const fs::path dataset = RecordingOf(ctx, o.dataset, "calib/lidar_to_lidar");
+  kapture::Kapture k(dataset);
+  const WheelOdometry odometry = WheelOdometry::FromKapture(dataset, o.Wheels());
   std::vector<std::string> lidars;
   for (const auto* s : k.sensors().OfType(kapture::kSensorLidar)) lidars.push_back(s->id);
-  if (lidars.size() < 2) throw InputError((fs::path(o.dataset) / kapture::layout::kSensors).string(), 0, "sensor_type", "fewer than 2 lidars");
+  if (lidars.size() < 2) throw InputError((dataset / kapture::layout::kSensors).string(), 0, "sensor_type", "fewer than 2 lidars");
   const std::string ref_id = o.reference_lidar.empty() ? lidars[0] : o.reference_lidar;
   const std::string other_id = o.lidar.empty() ? (lidars[0] == ref_id ? lidars[1] : lidars[0]) : o.lidar;
   auto Extrinsic = [&](const std::string& id) {
@@ -48,7 +49,7 @@ void LidarToLidar::Run(RunContext& ctx) {
   for (const auto& r : k.ReadDataRecords(kapture::kSensorLidar)) by_lidar[r.device_id].push_back(r);
   const auto& refs = by_lidar[ref_id];
   const auto& others = by_lidar[other_id];
-  if (refs.empty() || others.empty()) throw InputError(o.dataset, 0, "records_lidar", "no scans of " + ref_id + " or " + other_id);
+  if (refs.empty() || others.empty()) throw InputError(dataset.string(), 0, "records_lidar", "no scans of " + ref_id + " or " + other_id);
   // Consecutive scans from the middle of the recording, one odometry segment.
   const size_t first = refs.size() / 2;
   const double t0 = static_cast<double>(refs[first].timestamp);

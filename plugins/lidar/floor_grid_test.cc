@@ -60,16 +60,16 @@ TEST(FloorGrid, RightFrameAgreesAndWrongFramesConflict) {
   const FloorGrid b = GridOf(walls, pb, T_world_b);
 
   const JoinEvidence right = EvaluateJoin(a, b, T_world_b);
-  std::cout << "right: b_in_a " << right.b_in_a.agreeing << "/" << right.b_in_a.conflicting << "/" << right.b_in_a.unseen << " a_in_b " << right.a_in_b.agreeing << "/" << right.a_in_b.conflicting << "/" << right.a_in_b.unseen << "\n";
-  EXPECT_GT(right.Agreeing(), 20);
-  EXPECT_LT(right.Conflict(), 0.02);
+  EXPECT_GT(right.Agreeing(), 400);
+  EXPECT_LT(right.Conflict(), 0.03);
   // The same place seen with B's frame not turned (its leg along A's
-  // corridor, the one heading a symmetric start would suggest), and 180 deg.
-  for (const Pose& wrong : {Yaw(0, 20, 0), Yaw(180, 20, 0), Yaw(90, 16, 0)}) {
+  // corridor), turned the other way, and slid 4 m: each puts walls into the
+  // other's free space (a corridor's end, the corner), and agrees less.
+  for (const Pose& wrong : {Yaw(0, 20, 0), Yaw(-90, 20, 0), Yaw(180, 20, 0), Yaw(90, 16, 0)}) {
     const JoinEvidence e = EvaluateJoin(a, b, wrong);
-    std::cout << "wrong: b_in_a " << e.b_in_a.agreeing << "/" << e.b_in_a.conflicting << "/" << e.b_in_a.unseen << " a_in_b " << e.a_in_b.agreeing << "/" << e.a_in_b.conflicting << "/" << e.a_in_b.unseen << "\n";
-    EXPECT_GT(e.Conflict(), 0.3) << "yaw " << Eigen::AngleAxisd(wrong.q).angle() * 180 / M_PI << " t "
-                                 << wrong.t.transpose();
+    EXPECT_GT(e.Conflict(), 2 * right.Conflict() + 0.04) << "yaw " << Eigen::AngleAxisd(wrong.q).angle() * 180 / M_PI
+                                                         << " t " << wrong.t.transpose();
+    EXPECT_LT(e.Agreeing(), right.Agreeing()) << wrong.t.transpose();
   }
 }
 

@@ -38,6 +38,7 @@ bool JoinDecisionOptions::Check(std::string* why) const {
   };
   if (!(max_conflict >= 0 && max_conflict <= 1)) return fail("max_conflict must be in [0, 1]");
   if (min_agreeing < 1) return fail("min_agreeing must be >= 1");
+  if (!(rival_conflict_ratio >= 1)) return fail("rival_conflict_ratio must be >= 1");
   if (!(rival_conflict_margin >= 0)) return fail("rival_conflict_margin must be >= 0");
   if (!(rival_overlap >= 0 && rival_overlap <= 1)) return fail("rival_overlap must be in [0, 1]");
   return true;
@@ -97,7 +98,8 @@ JoinDecision DecideJoin(const std::vector<JoinHypothesis>& h, const JoinDecision
   // The closest distinct rival.
   for (int i = 0; i < static_cast<int>(h.size()); ++i) {
     if (i == d.winner || !eligible(h[i])) continue;
-    const bool close = h[i].evidence.Conflict() <= w.evidence.Conflict() + o.rival_conflict_margin &&
+    const bool close = h[i].evidence.Conflict() <= o.rival_conflict_ratio * w.evidence.Conflict() +
+                                                       o.rival_conflict_margin &&
                        h[i].evidence.Agreeing() >= o.rival_overlap * static_cast<double>(w.evidence.Agreeing());
     if (close && (d.rival < 0 || Quality(h[i].evidence) > Quality(h[d.rival].evidence))) d.rival = i;
   }

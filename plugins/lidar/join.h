@@ -36,9 +36,12 @@ struct JoinDecisionOptions {
   // ... over at least this many agreeing structure cells (each way).
   int64_t min_agreeing = 200;
   // A distinct hypothesis is a rival, and the join is refused as ambiguous,
-  // when its conflict fraction is below the winner's plus this margin and it
-  // agrees over at least rival_overlap of the winner's cells.
-  double rival_conflict_margin = 0.1;
+  // when its conflict fraction is at most rival_conflict_ratio x the
+  // winner's + rival_conflict_margin (the winner's own conflicts are people
+  // and moved objects: a rival within that noise is as good an answer) and
+  // it agrees over at least rival_overlap of the winner's cells.
+  double rival_conflict_ratio = 1.5;
+  double rival_conflict_margin = 0.02;
   double rival_overlap = 0.5;
   bool Check(std::string* why = nullptr) const;
 };

@@ -27,10 +27,8 @@ std::vector<std::pair<int, int>> LoopCandidates(const std::vector<Keyframe>& key
   return out;
 }
 
-std::vector<RegistrationResult> CheckLoop(
-    const Registrar& registrar,
-    const std::function<RegistrationResult(const RegistrationResult&, const Cloud&, const Cloud&)>& refine,
-    const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses, const LoopCheckOptions& o) {
+std::vector<RegistrationResult> RoughCheck(const Registrar& registrar, const Keyframe& a, const Keyframe& b,
+                                           const std::vector<Pose>& guesses, const LoopCheckOptions& o) {
   std::vector<RegistrationResult> roughs;
   for (const Pose& guess : guesses) {
     const RegistrationResult r = registrar(b.rough, a.rough, guess);
@@ -46,11 +44,24 @@ std::vector<RegistrationResult> CheckLoop(
       }
     if (!same) roughs.push_back(r);
   }
+  return roughs;
+}
+
+bool FineCheck(const Registrar& registrar, const Refiner& refine, const Keyframe& a, const Keyframe& b,
+               const RegistrationResult& rough, const LoopCheckOptions& o, RegistrationResult* fine) {
+  const RegistrationResult r = registrar(b.cloud, a.cloud, rough.T_target_source);
+  if (!r.converged || r.inlier_fraction < o.overlap) return false;
+  *fine = refine(r, b.cloud, a.cloud);
+  return true;
+}
+
+std::vector<RegistrationResult> CheckLoop(const Registrar& registrar, const Refiner& refine, const Keyframe& a,
+                                          const Keyframe& b, const std::vector<Pose>& guesses,
+                                          const LoopCheckOptions& o) {
   std::vector<RegistrationResult> out;
-  for (const auto& rough : roughs) {
-    const RegistrationResult fine = registrar(b.cloud, a.cloud, rough.T_target_source);
-    if (!fine.converged || fine.inlier_fraction < o.overlap) continue;
-    out.push_back(refine(fine, b.cloud, a.cloud));
+  for (const auto& rough : RoughCheck(registrar, a, b, guesses, o)) {
+    RegistrationResult fine;
+    if (FineCheck(registrar, refine, a, b, rough, o, &fine)) out.push_back(fine);
   }
   return out;
 }

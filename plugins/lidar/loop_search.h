@@ -40,14 +40,20 @@ struct LoopCheckOptions {
   double overlap = 0.6;         // inlier fraction of the precise check
 };
 
-// Coarse-to-fine check of a loop b -> a (T_ab): the rough registration
-// (`rough` clouds) from each guess, then the precise one (`cloud`) from each
-// distinct rough solution (0.5 m, 10 deg apart); `refine` then polishes each
-// accepted precise result. The accepted results, at most one per distinct
-// rough solution.
-std::vector<RegistrationResult> CheckLoop(const Registrar& registrar, const std::function<RegistrationResult(
-                                              const RegistrationResult&, const Cloud&, const Cloud&)>& refine,
-                                          const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
+using Refiner = std::function<RegistrationResult(const RegistrationResult&, const Cloud&, const Cloud&)>;
+
+// The coarse step of a loop check b -> a (T_ab): the rough registration
+// (`rough` clouds) from each guess; the distinct solutions passing the
+// thresholds (0.5 m, 10 deg apart), the best-overlapping of each.
+std::vector<RegistrationResult> RoughCheck(const Registrar& registrar, const Keyframe& a, const Keyframe& b,
+                                           const std::vector<Pose>& guesses, const LoopCheckOptions& options);
+// The precise step from a rough solution (`cloud`), then `refine`; false
+// when the precise registration fails its overlap.
+bool FineCheck(const Registrar& registrar, const Refiner& refine, const Keyframe& a, const Keyframe& b,
+               const RegistrationResult& rough, const LoopCheckOptions& options, RegistrationResult* fine);
+// Both steps: the accepted precise results, at most one per distinct rough solution.
+std::vector<RegistrationResult> CheckLoop(const Registrar& registrar, const Refiner& refine, const Keyframe& a,
+                                          const Keyframe& b, const std::vector<Pose>& guesses,
                                           const LoopCheckOptions& options);
 
 }  // namespace locforge::lidar

@@ -20,8 +20,9 @@ struct PlotSequence {
   std::vector<Eigen::Vector2d> xy;    // positions of those nodes
 };
 
-// Before optimisation dashed, after solid (one colour per sequence), loop
-// edges (pairs of node ids) as red segments between the optimised nodes.
+// One colour per sequence: before optimisation dashed and lighter, after
+// solid; loop edges (pairs of node ids) as thin grey segments between the
+// optimised nodes; a legend names the sequences and the two styles.
 plot::Figure TopDownFigure(const std::vector<PlotSequence>& before, const std::vector<PlotSequence>& after,
                            const std::vector<std::pair<int, int>>& loops);
 // Writes `stem`.svg and `stem`.png (atomic).

@@ -64,8 +64,9 @@ void PoseGraphSlamOptions::Declare(ParamSchema<PoseGraphSlamOptions>& s) {
         "other's free space").Range(0, 1);
   s.Add("join_min_overlap", &O::join_min_overlap,
         "... over at least this much structure seen by both (m of 0.1 m cells)").Range(0.1, 1e6);
-  s.Add("join_rival_conflict_margin", &O::join_rival_conflict_margin,
-        "A distinct frame whose conflict is within this margin of the winner's ...").Range(0, 1);
+  s.Add("join_rival_conflict_ratio", &O::join_rival_conflict_ratio,
+        "A distinct frame whose conflict is at most this many times the winner's ...").Range(1, 100);
+  s.Add("join_rival_conflict_margin", &O::join_rival_conflict_margin, "... plus this fraction ...").Range(0, 1);
   s.Add("join_rival_overlap", &O::join_rival_overlap,
         "... over at least this fraction of the winner's overlap makes the join ambiguous (refused)").Range(0, 1);
   s.Add("join_free_space_margin", &O::join_free_space_margin,
@@ -148,11 +149,13 @@ RegistrationBackend MakeBackend(const PoseGraphSlamOptions& o, RunContext& ctx, 
 void PoseGraphSlam::Run(RunContext& ctx) {
   const PoseGraphSlamOptions& o = options();
   const auto start = std::chrono::steady_clock::now();
-  if (o.motion_prior == "wheel" && o.dataset.empty())
-    throw ParamError("slam/pose_graph: dataset is required with motion_prior wheel (the wheel records)");
+  // The recording: wheel records (motion_prior wheel), sensors, rigs and camera records.
+  const bool has_recording = ctx.HasInput("recording") || !o.dataset.empty();
+  const fs::path recording =
+      has_recording || o.motion_prior == "wheel" ? RecordingOf(ctx, o.dataset, "slam/pose_graph") : fs::path();
   std::unique_ptr<WheelOdometry> odometry;
   if (o.motion_prior == "wheel")
-    odometry = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(o.dataset, o.Wheels()));
+    odometry = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(recording, o.Wheels()));
   RegistrationBackend backend = MakeBackend(o, ctx, 0);
   RegistrationBackend refine = MakeBackend(o, ctx, o.refine_correspondence_distance);
   const int threads = ctx.threads();
@@ -171,9 +174,12 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
   std::vector<ScanStamp> stamps;
   for (const auto& r : scans) stamps.push_back({r.timestamp, SequenceOfScan(r.path)});
+  const auto keyframes_start = std::chrono::steady_clock::now();
   slam.SelectKeyframes(stamps, [&](size_t i) {
     return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt"));
   });
+  slam.AddStepTime("keyframes",
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - keyframes_start).count());
   ctx.Info("pose_graph: " + std::to_string(slam.keyframes().size()) + " keyframes of " +
            std::to_string(scans.size()) + " scans");
   slam.Run();
@@ -185,10 +191,9 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   }
   if (inconsistent || (separate && o.unjoined == "error")) throw Error("slam/pose_graph: " + UnjoinedMessage(slam));
   if (separate) ctx.Info("pose_graph: " + UnjoinedMessage(slam));
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   // Sensors, rigs and camera records: the recording, else the scans' own.
-  const kapture::Kapture dataset(o.dataset.empty() ? scans_root : fs::path(o.dataset));
-  ctx.Info("pose_graph: " + WriteSlamOutputs(slam, o, scans, dataset, ctx.output_dir(), seconds));
+  const kapture::Kapture dataset(recording.empty() ? scans_root : recording);
+  ctx.Info("pose_graph: " + WriteSlamOutputs(slam, o, scans, dataset, ctx.output_dir(), start));
 }
 
 }  // namespace locforge::lidar

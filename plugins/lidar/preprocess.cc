@@ -36,15 +36,16 @@ std::string OutputPath(const std::string& reference_path) {
 }
 }  // namespace
 
-void Preprocess::Load() {
+void Preprocess::Load(RunContext& ctx) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (loaded_) return;
   const PreprocessOptions& o = options();
-  kapture::Kapture k(o.dataset);
+  dataset_ = RecordingOf(ctx, o.dataset, "lidar/preprocess");
+  kapture::Kapture k(dataset_);
   std::vector<std::string> lidars;
   for (const auto* s : k.sensors().OfType(kapture::kSensorLidar)) lidars.push_back(s->id);
   if (lidars.empty())
-    throw InputError((fs::path(o.dataset) / kapture::layout::kSensors).string(), 0, "sensor_type",
+    throw InputError((dataset_ / kapture::layout::kSensors).string(), 0, "sensor_type",
                      "no lidar sensor");
   const std::string reference = o.reference_lidar.empty() ? lidars.front() : o.reference_lidar;
   if (std::find(lidars.begin(), lidars.end(), reference) == lidars.end())
@@ -79,23 +80,23 @@ void Preprocess::Load() {
     }
   }
   if (o.undistort)
-    odometry_ = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(o.dataset, o.Wheels()));
+    odometry_ = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(dataset_, o.Wheels()));
   loaded_ = true;
 }
 
-std::vector<std::string> Preprocess::ListItems(RunContext& /*ctx*/) {
-  Load();
+std::vector<std::string> Preprocess::ListItems(RunContext& ctx) {
+  Load(ctx);
   std::vector<std::string> items;
   for (const auto& [path, sources] : items_) items.push_back(path);
   return items;
 }
 
 void Preprocess::ProcessItem(RunContext& ctx, const std::string& item) {
-  Load();
+  Load(ctx);
   const PreprocessOptions& o = options();
   const auto found = items_.find(item);
   if (found == items_.end()) throw Error("lidar/preprocess: unknown item '" + item + "'");
-  kapture::Kapture k(o.dataset);
+  kapture::Kapture k(dataset_);
   const double t_ref = static_cast<double>(found->second.front().timestamp);
   const Eigen::Vector3f box_min(o.self_box[0], o.self_box[1], o.self_box[2]);
   const Eigen::Vector3f box_max(o.self_box[3], o.self_box[4], o.self_box[5]);
@@ -134,7 +135,7 @@ void Preprocess::ProcessItem(RunContext& ctx, const std::string& item) {
 }
 
 void Preprocess::Finalize(RunContext& ctx) {
-  Load();
+  Load(ctx);
   const fs::path out = ctx.output_dir();
   kapture::Sensors sensors;
   sensors.Add({kScanDevice, "undistorted merged LiDAR scans (platform frame)", kapture::kSensorLidar, {}, {}});

@@ -1,6 +1,7 @@
 #include "slam.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <sstream>
 
@@ -134,16 +135,22 @@ RegistrationResult Slam::Refine(const RegistrationResult& first, const Cloud& so
   return fine;
 }
 
-std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
-                                                double rough_error) {
+LoopCheckOptions Slam::LoopOptions(double rough_error) const {
   LoopCheckOptions lo;
   lo.rough_overlap = o_.loop_rough_overlap;
   lo.rough_error_m = rough_error;
   lo.max_guess_distance_m = o_.loop_radius;
   lo.overlap = o_.loop_overlap;
-  return lidar::CheckLoop(
-      registrar_, [this](const RegistrationResult& r, const Cloud& s, const Cloud& t) { return Refine(r, s, t); }, a,
-      b, guesses, lo);
+  return lo;
+}
+
+Refiner Slam::MakeRefiner() {
+  return [this](const RegistrationResult& r, const Cloud& s, const Cloud& t) { return Refine(r, s, t); };
+}
+
+std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
+                                                double rough_error) {
+  return lidar::CheckLoop(registrar_, MakeRefiner(), a, b, guesses, LoopOptions(rough_error));
 }
 
 void Slam::AddSequentialEdges() {
@@ -264,25 +271,40 @@ void Slam::Optimize() {
   ++poses_version_;
 }
 
+void Slam::AddStepTime(const std::string& step, double seconds) {
+  for (auto& [name, t] : stats_.steps)
+    if (name == step) {
+      t += seconds;
+      return;
+    }
+  stats_.steps.emplace_back(step, seconds);
+}
+
 void Slam::Run() {
-  AddSequentialEdges();
+  auto timed = [this](const std::string& step, auto&& f) {
+    const auto start = std::chrono::steady_clock::now();
+    auto result = f();
+    AddStepTime(step, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    return result;
+  };
+  timed("sequential edges", [&] { AddSequentialEdges(); return 0; });
   before_ = graph_;
   // Each part alone first: its own loops, optimised, so that the maps
   // compared when joining are as right as they get.
-  int added = AddLoopEdges();
-  Optimize();
+  int added = timed("loops", [&] { return AddLoopEdges(); });
+  timed("optimisation", [&] { Optimize(); return 0; });
   hooks_.info("pose_graph: " + std::to_string(added) + " loop edges within the parts");
   for (int round = 1; round <= o_.rounds; ++round) {
     const size_t edges = graph_.edges.size();
-    const int joined = JoinComponents(round);
-    AddLoopEdges();
+    const int joined = timed("joins", [&] { return JoinComponents(round); });
+    timed("loops", [&] { return AddLoopEdges(); });
     added = static_cast<int>(graph_.edges.size() - edges);  // join loops + the others
     hooks_.info("pose_graph: round " + std::to_string(round) + ": " + std::to_string(joined) + " parts joined, " +
                 std::to_string(added) + " loop edges");
-    Optimize();
+    timed("optimisation", [&] { Optimize(); return 0; });
     if (added == 0 && joined == 0) break;
   }
-  CheckFinalJoins();
+  timed("join check", [&] { CheckFinalJoins(); return 0; });
 }
 
 // T_world_rig at t. Wheel odometry: the latest keyframe at or before t in

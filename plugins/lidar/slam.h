@@ -57,12 +57,16 @@ struct SequenceJoin {
   bool consistent = true;
 };
 
+// Wall time of each step (s), in the order they ran.
+using StepTimes = std::vector<std::pair<std::string, double>>;
+
 struct SlamStats {
   int sequential_fallbacks = 0, information_fallbacks = 0;
   int refinements = 0, refinements_rejected = 0;
   int64_t loop_tests = 0;
   int joins = 0, join_attempts = 0, join_tests = 0, join_rejected_loops = 0;
   PoseGraphSummary summary;
+  StepTimes steps;  // keyframes, sequential edges, loops, joins, optimisation, join check
 };
 
 class Slam {
@@ -91,11 +95,15 @@ class Slam {
   const std::vector<JoinAttempt>& join_attempts() const { return attempts_; }
   const std::vector<SequenceJoin>& sequence_joins() const { return sequence_joins_; }
   const SlamStats& stats() const { return stats_; }
+  // Adds `seconds` to a step of stats().steps (the stage times its own steps too).
+  void AddStepTime(const std::string& step, double seconds);
   // Floor grid of a set of keyframes at their current poses.
   FloorGrid MakeFloor(const std::vector<const Keyframe*>& keyframes) const;
 
  private:
   RegistrationResult Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target);
+  LoopCheckOptions LoopOptions(double rough_error) const;
+  Refiner MakeRefiner();
   std::vector<RegistrationResult> CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
                                             double rough_error);
   Pose MotionGuess(size_t i) const;

@@ -119,29 +119,31 @@ bool Slam::TryJoin(int A, int B, int round) {
     }
     return best;
   };
+  // Loops between the parts: the rough step only, until a frame is chosen
+  // (the overlap evidence needs no more); then the precise step for the
+  // loops that agree with it.
   std::vector<JoinCandidate> candidates;
-  std::vector<RegistrationResult> fines;  // parallel to candidates
+  std::vector<RegistrationResult> results;  // parallel: rough, or precise when `fine`
+  std::vector<char> fine;
   std::set<std::pair<int, int>> tested;
-  auto test = [&](const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses, double rough_error,
-                  bool predicted) {
+  auto add = [&](const Keyframe& a, const Keyframe& b, const RegistrationResult& r, bool predicted, bool precise) {
+    JoinCandidate c;
+    c.a = a.id;
+    c.b = b.id;
+    c.T_A_B = graph_.nodes.at(a.id) * r.T_target_source * graph_.nodes.at(b.id).Inverse();
+    c.p_b = graph_.nodes.at(b.id).t;
+    c.overlap = r.inlier_fraction;
+    c.predicted = predicted;
+    candidates.push_back(c);
+    results.push_back(r);
+    fine.push_back(precise);
+  };
+  auto test = [&](const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses) {
     tested.insert({a.id, b.id});
     ++stats_.join_tests;
-    int ok = 0;
-    for (const auto& f : CheckLoop(a, b, guesses, rough_error)) {
-      JoinCandidate c;
-      c.a = a.id;
-      c.b = b.id;
-      c.T_A_B = graph_.nodes.at(a.id) * f.T_target_source * graph_.nodes.at(b.id).Inverse();
-      c.p_b = graph_.nodes.at(b.id).t;
-      c.overlap = f.inlier_fraction;
-      c.predicted = predicted;
-      candidates.push_back(c);
-      fines.push_back(f);
-      ++ok;
-    }
-    return ok;
+    for (const auto& r : RoughCheck(registrar_, a, b, guesses, LoopOptions(o_.join_rough_error)))
+      add(a, b, r, false, false);
   };
-
   // Seeds: B's keyframes within join_seed_radius of its start p0, every
   // loop_stride-th, nearest first; for each turn H about p0, against the
   // keyframe of A nearest H p_b, from the guess T_ab = T_A_a^-1 H T_B_b.
@@ -163,7 +165,7 @@ bool Slam::TryJoin(int A, int B, int round) {
       const Keyframe* a = nearest_a(H * graph_.nodes.at(b.id).t);
       if (a) guesses[a->id].push_back(graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b.id));
     }
-    for (const auto& [a, g] : guesses) test(keyframes_[a], b, g, o_.join_rough_error, false);
+    for (const auto& [a, g] : guesses) test(keyframes_[a], b, g);
   }
   // Places: for every loop_stride-th keyframe of B, A's keyframes nearest by
   // ring key, the best of them by Scan Context distance, checked from the
@@ -187,7 +189,7 @@ bool Slam::TryJoin(int A, int B, int round) {
     for (size_t k = 0; k < matches.size() && static_cast<int>(k) < o_.join_place_matches; ++k) {
       const Keyframe& a = *matches[k].second;
       if (tested.count({a.id, b.id})) continue;
-      test(a, b, {YawPose(matches[k].first.yaw)}, o_.join_rough_error, false);
+      test(a, b, {YawPose(matches[k].first.yaw)});
       ++places;
     }
   }
@@ -203,6 +205,7 @@ bool Slam::TryJoin(int A, int B, int round) {
   JoinDecisionOptions jo;
   jo.max_conflict = o_.join_max_conflict;
   jo.min_agreeing = std::max<int64_t>(1, std::llround(o_.join_min_overlap / fa.options().cell_m));
+  jo.rival_conflict_ratio = o_.join_rival_conflict_ratio;
   jo.rival_conflict_margin = o_.join_rival_conflict_margin;
   jo.rival_overlap = o_.join_rival_overlap;
   JoinDecision d = DecideJoin(hypotheses, jo);
@@ -211,11 +214,22 @@ bool Slam::TryJoin(int A, int B, int round) {
   if (d.winner >= 0) at.has_winner = true, at.winner = hypotheses[d.winner];
   if (d.rival >= 0) at.has_rival = true, at.rival = hypotheses[d.rival];
 
-  // The winner's predicted loops along B, from its frame.
+  // The winner's loops made precise, then the loops it predicts along B.
   std::vector<int> inliers;
+  Pose H;
   if (d.status == JoinDecision::Status::kJoined) {
     const JoinCandidate rep = candidates[hypotheses[d.winner].loops.front()];
-    const Pose H = rep.T_A_B;
+    for (int i : hypotheses[d.winner].loops) {
+      hooks_.check_cancelled();
+      RegistrationResult precise;
+      if (!FineCheck(registrar_, MakeRefiner(), keyframes_[candidates[i].a], keyframes_[candidates[i].b], results[i],
+                     LoopOptions(o_.join_rough_error), &precise))
+        continue;
+      const Keyframe& a = keyframes_[candidates[i].a];
+      const Keyframe& b = keyframes_[candidates[i].b];
+      add(a, b, precise, false, true);
+    }
+    H = rep.T_A_B;
     std::vector<std::pair<const Keyframe*, const Keyframe*>> predicted;
     for (const Keyframe* b : kb) {
       const Keyframe* a = nearest_a(H * graph_.nodes.at(b->id).t);
@@ -225,15 +239,24 @@ bool Slam::TryJoin(int A, int B, int round) {
     for (size_t k = 0; k < n; ++k) {
       hooks_.check_cancelled();
       const auto [a, b] = predicted[k * predicted.size() / n];
-      test(*a, *b, {graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b->id)}, o_.loop_rough_error, true);
+      tested.insert({a->id, b->id});
+      ++stats_.join_tests;
+      for (const auto& r : CheckLoop(*a, *b, {graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b->id)},
+                                     o_.loop_rough_error))
+        add(*a, *b, r, true, true);
     }
+    // The precise loops agreeing with the winner; the frame applied is that
+    // of the best-overlapping one.
     std::set<int> support, verified;
+    int best = -1;
     for (int i = 0; i < static_cast<int>(candidates.size()); ++i)
-      if (HypothesesAgree(rep, candidates[i], agreement)) {
+      if (fine[i] && HypothesesAgree(rep, candidates[i], agreement)) {
         inliers.push_back(i);
         support.insert(candidates[i].b);
         if (candidates[i].predicted) verified.insert(candidates[i].b);
+        if (best < 0 || candidates[i].overlap > candidates[best].overlap) best = i;
       }
+    if (best >= 0) H = candidates[best].T_A_B;
     at.predicted_tested = static_cast<int>(n);
     at.predicted_found = static_cast<int>(verified.size());
     if (static_cast<int>(support.size()) < o_.join_min_support ||
@@ -255,6 +278,9 @@ bool Slam::TryJoin(int A, int B, int round) {
   if (at.has_rival)
     log << "; rival: conflict " << Percent(at.rival.evidence.Conflict()) << ", " << at.rival.evidence.Agreeing()
         << " cells";
+  log << "; frames (conflict, agreeing, support):";
+  for (const auto& h : hypotheses)
+    log << " (" << Percent(h.evidence.Conflict()) << ", " << h.evidence.Agreeing() << ", " << h.support << ")";
   if (at.predicted_tested > 0) log << "; predicted loops " << at.predicted_found << " of " << at.predicted_tested;
   log << ": " << (d.status == JoinDecision::Status::kJoined ? "joined" : "refused, " + d.reason);
   hooks_.info(log.str());
@@ -264,7 +290,7 @@ bool Slam::TryJoin(int A, int B, int round) {
     return false;
   }
   // B into A's frame (and its pre-optimisation copy, for the plot).
-  at.T_A_B = candidates[hypotheses[d.winner].loops.front()].T_A_B;
+  at.T_A_B = H;
   for (const Keyframe* b : kb) {
     graph_.nodes[b->id] = at.T_A_B * graph_.nodes.at(b->id);
     before_.nodes[b->id] = at.T_A_B * before_.nodes.at(b->id);
@@ -272,9 +298,9 @@ bool Slam::TryJoin(int A, int B, int round) {
   for (int i : inliers) {
     const Keyframe& a = keyframes_[candidates[i].a];
     const Keyframe& b = keyframes_[candidates[i].b];
-    if (!accepted_.count({std::min(a.id, b.id), std::max(a.id, b.id)})) AddLoopEdge(a, b, fines[i]);
+    if (!accepted_.count({std::min(a.id, b.id), std::max(a.id, b.id)})) AddLoopEdge(a, b, results[i]);
   }
-  stats_.join_rejected_loops += static_cast<int>(candidates.size() - inliers.size());
+  stats_.join_rejected_loops += static_cast<int>(std::count(fine.begin(), fine.end(), 1) - inliers.size());
   for (auto& [seq, c] : component_)
     if (c == B) c = A;
   ++stats_.joins;

@@ -90,7 +90,8 @@ std::string UnjoinedMessage(const Slam& slam) {
 
 std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& o,
                              const std::vector<kapture::DataRecord>& scans, const kapture::Kapture& dataset,
-                             const fs::path& out, double seconds) {
+                             const fs::path& out, std::chrono::steady_clock::time_point start) {
+  const auto outputs_start = std::chrono::steady_clock::now();
   const PoseGraph& graph = slam.graph();
   const auto& keyframes = slam.keyframes();
   const int anchor = slam.AnchorComponent();
@@ -185,6 +186,14 @@ std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& o,
                << "}";
   }
   const SlamStats& st = slam.stats();
+  StepTimes steps = st.steps;
+  const auto now = std::chrono::steady_clock::now();
+  steps.emplace_back("outputs", std::chrono::duration<double>(now - outputs_start).count());
+  const double seconds = std::chrono::duration<double>(now - start).count();
+  std::ostringstream steps_json;
+  steps_json.precision(6);
+  for (const auto& [name, t] : steps)
+    steps_json << (steps_json.tellp() > 0 ? ", " : "") << "\"" << name << "\": " << t;
   std::ostringstream j;
   j.precision(10);
   j << "{\n  \"scans\": " << scans.size() << ",\n  \"keyframes\": " << keyframes.size()
@@ -202,6 +211,7 @@ std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& o,
     << ", \"median\": " << crisp.median << ", \"rmse\": " << crisp.rmse << ", \"p90\": " << crisp.p90 << "}"
     << ",\n  \"join_attempts_detail\": [" << joins_json.str() << "\n  ]"
     << ",\n  \"loops\": [" << loops_json.str() << "\n  ]"
+    << ",\n  \"step_seconds\": {" << steps_json.str() << "}"
     << ",\n  \"seconds\": " << seconds
     << ",\n  \"scans_per_second\": " << scans.size() / std::max(seconds, 1e-9) << "\n}\n";
   WriteFileAtomic(out / "slam.json", j.str());

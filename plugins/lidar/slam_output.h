@@ -4,6 +4,7 @@
 #ifndef LOCFORGE_PLUGINS_LIDAR_SLAM_OUTPUT_H_
 #define LOCFORGE_PLUGINS_LIDAR_SLAM_OUTPUT_H_
 
+#include <chrono>
 #include <string>
 #include <vector>
 
@@ -18,10 +19,11 @@ std::string JoinsCsv(const Slam& slam);
 
 // Writes every output into `out`. `dataset`: the recording (sensors, rigs,
 // camera records); scans: the scan records the keyframes came from.
-// Returns the one-line summary for the log.
+// `start`: when the stage started (slam.json's times). Returns the one-line
+// summary for the log.
 std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& options,
                              const std::vector<kapture::DataRecord>& scans, const kapture::Kapture& dataset,
-                             const fs::path& out, double seconds);
+                             const fs::path& out, std::chrono::steady_clock::time_point start);
 
 // The error of a run whose parts could not all be joined (unjoined: error),
 // or whose joins do not hold after optimisation: the table, and what to do.

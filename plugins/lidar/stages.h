@@ -20,6 +20,13 @@ namespace locforge::lidar {
   s.Add("wheel_axle", &O::wheel_axle, "Axle length (m); 0: from sensors.txt").Min(0);       \
   s.Add("pulses_per_rev", &O::pulses_per_rev, "Encoder pulses per revolution; 0: from sensors.txt").Min(0)
 
+// The recording a stage reads: its `recording` input when wired (e.g. from
+// source/simulator in the same graph), else its `dataset` parameter; a clear
+// ParamError when neither or both are given.
+fs::path RecordingOf(RunContext& ctx, const std::string& dataset_param, const std::string& stage);
+#define LOCFORGE_LIDAR_RECORDING_PORT \
+  {"recording", "kapture.dataset", "the recording, instead of the dataset parameter", LF_PORT_OPTIONAL}
+
 // ---- odometry/diff_drive ------------------------------------------------------
 
 struct DiffDriveOptions {
@@ -27,8 +34,8 @@ struct DiffDriveOptions {
   double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
   double rate_hz = 10;       // Output poses per second.
   static void Declare(ParamSchema<DiffDriveOptions>& s) {
-    s.Add("dataset", &DiffDriveOptions::dataset, "Kapture recording with wheel encoder records")
-        .Path().Required();
+    s.Add("dataset", &DiffDriveOptions::dataset,
+          "Kapture recording with wheel encoder records (or wire the recording input)").Path();
     LOCFORGE_LIDAR_WHEEL_PARAMS(DiffDriveOptions);
     s.Add("rate_hz", &DiffDriveOptions::rate_hz, "Output platform poses per second").Range(0.1, 1000);
   }
@@ -40,7 +47,7 @@ class DiffDrive : public Stage<DiffDriveOptions> {
   static StageMeta Meta() {
     return {"odometry", "diff_drive",
             "Differential-drive wheel odometry from encoder ticks (platform trajectory, device rig)",
-            {},
+            {LOCFORGE_LIDAR_RECORDING_PORT},
             {{"trajectories", "kapture.trajectories", "T_rig_odom per segment, at rate_hz"}}};
   }
   using Stage::Stage;
@@ -61,8 +68,8 @@ struct PreprocessOptions {
   double seconds_per_unit = 1e-6;
   double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
   static void Declare(ParamSchema<PreprocessOptions>& s) {
-    s.Add("dataset", &PreprocessOptions::dataset, "Kapture recording (LiDAR + wheel records)")
-        .Path().Required();
+    s.Add("dataset", &PreprocessOptions::dataset,
+          "Kapture recording (LiDAR + wheel records), or wire the recording input").Path();
     s.Add("reference_lidar", &PreprocessOptions::reference_lidar,
           "LiDAR whose scan times are the reference; empty: the first lidar of sensors.txt");
     s.Add("voxel", &PreprocessOptions::voxel, "Voxel size of the downsampling (m); 0: none").Range(0, 10);
@@ -86,7 +93,7 @@ class Preprocess : public PerItemStage<PreprocessOptions> {
   static StageMeta Meta() {
     return {"lidar", "preprocess",
             "LiDAR scans into the platform frame, undistorted by odometry, merged, filtered, downsampled",
-            {},
+            {LOCFORGE_LIDAR_RECORDING_PORT},
             {{"scans", "kapture.dataset",
               "records_lidar.txt of device 'scan' (platform frame) + one PCD per reference scan"}}};
   }
@@ -102,8 +109,9 @@ class Preprocess : public PerItemStage<PreprocessOptions> {
   };
 
  private:
-  void Load();
+  void Load(RunContext& ctx);
   std::mutex mutex_;
+  fs::path dataset_;
   bool loaded_ = false;
   std::unique_ptr<WheelOdometry> odometry_;
   std::map<std::string, Pose> T_platform_lidar_;
@@ -171,7 +179,8 @@ struct PoseGraphSlamOptions {
   double join_max_rotation = 5;        // deg, ... and their rotations within this
   double join_max_conflict = 0.2;      // fraction of shared structure in the other map's free space
   double join_min_overlap = 20;        // m of structure seen by both maps (cells x cell size)
-  double join_rival_conflict_margin = 0.1;  // a distinct frame with a conflict this close to the winner's ...
+  double join_rival_conflict_ratio = 1.5;   // a distinct frame with a conflict below ratio x the winner's ...
+  double join_rival_conflict_margin = 0.02; // ... + margin ...
   double join_rival_overlap = 0.5;          // ... and this fraction of its overlap makes the join ambiguous
   double join_free_space_margin = 0.3;      // m: structure this close to the other map's returns agrees
   // A part that cannot be joined: "error" stops the run with the evidence and
@@ -211,7 +220,8 @@ class PoseGraphSlam : public Stage<PoseGraphSlamOptions> {
     return {"slam", "pose_graph",
             "Pose-graph LiDAR SLAM: registration edges, coarse-to-fine loop closures, Ceres, sequences merged",
             {{"scans", "kapture.dataset",
-              "Undistorted platform-frame scans (lidar/preprocess, or source/pcd_keyframes)"}},
+              "Undistorted platform-frame scans (lidar/preprocess, or source/pcd_keyframes)"},
+             LOCFORGE_LIDAR_RECORDING_PORT},
             {{"trajectories", "kapture.trajectories",
               "sensors/trajectories.txt: rig at every scan, cameras at every image; map.pcd/ply, "
               "pose_graph.g2o, trajectories.svg/png, slam.json"}}};
@@ -279,7 +289,7 @@ struct LidarToLidarOptions {
   double wheel_radius = 0, wheel_axle = 0, pulses_per_rev = 0;
   static void Declare(ParamSchema<LidarToLidarOptions>& s) {
     using O = LidarToLidarOptions;
-    s.Add("dataset", &O::dataset, "Kapture recording with two lidars").Path().Required();
+    s.Add("dataset", &O::dataset, "Kapture recording with two lidars (or wire the recording input)").Path();
     s.Add("reference_lidar", &O::reference_lidar, "Reference lidar; empty: the first of sensors.txt");
     s.Add("lidar", &O::lidar, "Calibrated lidar; empty: the other one");
     s.Add("scans", &O::scans, "Scans accumulated").Range(1, 1000);
@@ -301,7 +311,7 @@ class LidarToLidar : public Stage<LidarToLidarOptions> {
  public:
   static StageMeta Meta() {
     return {"calib", "lidar_to_lidar", "Extrinsic of a second LiDAR w.r.t. the first by registration on their shared view",
-            {},
+            {LOCFORGE_LIDAR_RECORDING_PORT},
             {{"rig", "kapture.dataset", "sensors/rigs.txt with the calibrated extrinsic, calib.json"}}};
   }
   using Stage::Stage;

@@ -3,6 +3,7 @@
 // with a Markdown/CSV/JSON report and TUM/KITTI exports.
 #include <sstream>
 
+#include "joins_stage.h"
 #include "locforge/plugin.h"
 #include "metrics.h"
 
@@ -105,5 +106,5 @@ void TrajectoryEval::Run(RunContext& ctx) {
 
 }  // namespace locforge::eval
 
-LOCFORGE_PLUGIN("trajectory_eval", "0.1.0", "Trajectory evaluation (ATE/RPE, evo-compatible)",
-                locforge::eval::TrajectoryEval)
+LOCFORGE_PLUGIN("trajectory_eval", "0.2.0", "Trajectory evaluation (ATE/RPE, evo-compatible; joins of multi-sequence maps)",
+                locforge::eval::TrajectoryEval, locforge::eval::JoinsEval)
