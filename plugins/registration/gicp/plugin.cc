@@ -39,7 +39,7 @@ struct GicpOptions {
   // dropped first), so registering a cloud again skips its downsampling,
   // KD-tree and covariances; 0 = off. Each holds the input points and the
   // downsampled points, tree and covariances (~140 bytes per point kept).
-  int cache_clouds = 16;
+  int cache_clouds = 8;
 
   static void Declare(ParamSchema<GicpOptions>& s) {
     s.Add("voxel_size", &GicpOptions::voxel_size, "Voxel downsampling of both clouds, metres; 0 = off")
