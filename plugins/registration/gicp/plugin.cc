@@ -37,8 +37,8 @@ struct GicpOptions {
   double lambda = 1e-6;                      // Damping (LM: initial value).
   // Preprocessed clouds kept by this back-end instance (least recently used
   // dropped first), so registering a cloud again skips its downsampling,
-  // KD-tree and covariances; 0 = off. Each holds the input points and the
-  // downsampled points, tree and covariances (~140 bytes per point kept).
+  // KD-tree and covariances; 0 = off. An entry takes 12 bytes per input
+  // point and ~130 per point kept (points, tree, covariances).
   int cache_clouds = 8;
 
   static void Declare(ParamSchema<GicpOptions>& s) {
