@@ -57,47 +57,50 @@ int KdTree::Build(const Points& points, int begin, int end) {
   return id;
 }
 
-// Depth-first descent, nearer child first, pruned with an incremental lower
-// bound of the squared distance to a node's cell (nanoflann's trick):
-// `axis_sq_dist` holds, per axis, the squared distance from q to the cell's
-// slab, and `min_sq_dist` their sum. `v.bound()` is the current squared
-// search radius; `v.Add(i, d2)` offers the point at tree position i.
+// Depth-first, nearer child first, pruned with an incremental lower bound of
+// the squared distance to a node's cell (nanoflann's trick): `axis_sq_dist`
+// holds, per axis, the squared distance from q to the cell's slab, and
+// `min_sq_dist` their sum. Iterative: each descent to a leaf stacks the
+// farther children, popped (deepest first) when still within `v.bound()`,
+// the current squared search radius; `v.Add(i, d2)` offers the point at tree
+// position i.
 template <typename Visitor>
-void KdTree::Search(int node, const Eigen::Vector3d& q, double min_sq_dist, Eigen::Vector3d& axis_sq_dist,
-                    Visitor& v) const {
-  const Node& n = nodes_[node];
-  if (n.axis < 0) {
-    // All distances of the leaf first (a loop the compiler vectorises), then the offers.
+void KdTree::SearchFromRoot(const Eigen::Vector3d& q, Visitor& v) const {
+  struct Cell {
+    int node;
+    double min_sq_dist;
+    Eigen::Vector3d axis_sq_dist;
+  };
+  Cell stack[64];  // deeper than any tree of < 2^31 points
+  int top = 0;
+  const Eigen::Vector3d to_box = (q.cwiseMax(lo_).cwiseMin(hi_) - q).cwiseAbs2();
+  stack[top++] = Cell{0, to_box.sum(), to_box};
+  while (top > 0) {
+    const Cell cell = stack[--top];
+    if (cell.min_sq_dist >= v.bound()) continue;
+    int node = cell.node;
+    for (const Node* n = &nodes_[node]; n->axis >= 0; n = &nodes_[node]) {
+      const double to_low = q[n->axis] - n->low, to_high = q[n->axis] - n->high;
+      const bool left_first = to_low + to_high < 0;  // q nearer the left child's side of the gap
+      const double cut = left_first ? to_high * to_high : to_low * to_low;
+      Cell far{left_first ? n->right : node + 1, cell.min_sq_dist + cut - cell.axis_sq_dist[n->axis],
+               cell.axis_sq_dist};
+      far.axis_sq_dist[n->axis] = cut;
+      if (far.min_sq_dist < v.bound()) stack[top++] = far;
+      node = left_first ? node + 1 : n->right;
+    }
+    // A leaf: all its distances first (a loop the compiler vectorises), then the offers.
+    const Node& leaf = nodes_[node];
     double d2[kLeafSize];
-    const int m = n.end - n.begin;
-    const double *x = &x_[n.begin], *y = &y_[n.begin], *z = &z_[n.begin];
+    const int m = leaf.end - leaf.begin;
+    const double *x = &x_[leaf.begin], *y = &y_[leaf.begin], *z = &z_[leaf.begin];
     for (int i = 0; i < m; ++i) {
       const double dx = x[i] - q.x(), dy = y[i] - q.y(), dz = z[i] - q.z();
       d2[i] = dx * dx + dy * dy + dz * dz;
     }
     for (int i = 0; i < m; ++i)
-      if (d2[i] < v.bound()) v.Add(n.begin + i, d2[i]);
-    return;
+      if (d2[i] < v.bound()) v.Add(leaf.begin + i, d2[i]);
   }
-  const double to_low = q[n.axis] - n.low, to_high = q[n.axis] - n.high;
-  const bool left_first = to_low + to_high < 0;  // q nearer the left child's side of the gap
-  const double cut = left_first ? to_high * to_high : to_low * to_low;
-  Search(left_first ? node + 1 : n.right, q, min_sq_dist, axis_sq_dist, v);
-  const double saved = axis_sq_dist[n.axis];
-  min_sq_dist += cut - saved;
-  if (min_sq_dist < v.bound()) {
-    axis_sq_dist[n.axis] = cut;
-    Search(left_first ? n.right : node + 1, q, min_sq_dist, axis_sq_dist, v);
-    axis_sq_dist[n.axis] = saved;
-  }
-}
-
-template <typename Visitor>
-void KdTree::SearchFromRoot(const Eigen::Vector3d& q, Visitor& v) const {
-  // Per-axis squared distance from q to the bounding box.
-  Eigen::Vector3d axis_sq_dist = (q.cwiseMax(lo_).cwiseMin(hi_) - q).cwiseAbs2();
-  const double min_sq_dist = axis_sq_dist.sum();
-  if (min_sq_dist < v.bound()) Search(0, q, min_sq_dist, axis_sq_dist, v);
 }
 
 bool KdTree::Nearest(const Eigen::Vector3d& q, double max_sq_dist, int* index,

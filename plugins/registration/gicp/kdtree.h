@@ -44,9 +44,6 @@ class KdTree {
   };
   int Build(const Points& points, int begin, int end);
   template <typename Visitor>
-  void Search(int node, const Eigen::Vector3d& q, double min_sq_dist, Eigen::Vector3d& axis_sq_dist,
-              Visitor& v) const;
-  template <typename Visitor>
   void SearchFromRoot(const Eigen::Vector3d& q, Visitor& v) const;
 
   std::vector<double> x_, y_, z_;  // the points in tree order
