@@ -59,10 +59,13 @@ template <typename Point>
 Points VoxelCentroids(const std::vector<Point>& points, double voxel_size) {
   // 21 bits per axis: +-1M voxels, e.g. +-100 km at 10 cm.
   auto key = [&](const Eigen::Vector3d& p) {
-    const Eigen::Vector3d v = (p / voxel_size).array().floor();
     uint64_t k = 0;
-    for (int a = 0; a < 3; ++a)
-      k = (k << 21) | (static_cast<uint64_t>(static_cast<int64_t>(v[a]) + (1 << 20)) & 0x1FFFFF);
+    for (int a = 0; a < 3; ++a) {
+      const double s = p[a] / voxel_size;
+      int64_t v = static_cast<int64_t>(s);  // floor(s), without a libm call
+      v -= s < static_cast<double>(v);
+      k = (k << 21) | (static_cast<uint64_t>(v + (1 << 20)) & 0x1FFFFF);
+    }
     return k;
   };
   VoxelIndex voxel_of;
