@@ -4,6 +4,7 @@
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <set>
 
 #include "locforge/error.h"
 
@@ -19,7 +20,9 @@ bool FloorGridOptions::Check(std::string* why) const {
   if (!(azimuth_bin_deg > 0 && azimuth_bin_deg <= 90)) return fail("floor grid: azimuth_bin_deg must be in (0, 90]");
   if (!(max_range_m > cell_m)) return fail("floor grid: max_range_m must exceed cell_m");
   if (min_scans_occupied < 1 || min_scans_free < 1) return fail("floor grid: scan counts must be >= 1");
+  if (!(tall_max_height_m > tall_min_height_m)) return fail("floor grid: tall_max_height_m must exceed tall_min_height_m");
   if (!(agreement_margin_m >= 0)) return fail("floor grid: agreement_margin_m must be >= 0");
+  if (!(min_conflict_extent_m >= 0)) return fail("floor grid: min_conflict_extent_m must be >= 0");
   return true;
 }
 
@@ -36,6 +39,7 @@ FloorGrid::FloorGrid(const FloorGridOptions& options, const Eigen::AlignedBox2d&
   const size_t n = static_cast<size_t>(width_) * height_;
   hit_scans_.assign(n, 0);
   crossed_scans_.assign(n, 0);
+  tall_.assign(n, 0);
   last_hit_.assign(n, -1);
   last_crossed_.assign(n, -1);
 }
@@ -62,11 +66,16 @@ void FloorGrid::AddScan(const Cloud& scan, const Pose& T_world_rig) {
   };
   for (const Eigen::Vector3f& pf : scan.points) {
     const Eigen::Vector3d p = pf.cast<double>();
-    if (p.z() < o_.min_height_m || p.z() > o_.max_height_m) continue;
     const double range = p.head<2>().norm();
     if (range > o_.max_range_m || range < o_.cell_m) continue;
+    const bool tall = p.z() >= o_.tall_min_height_m && p.z() <= o_.tall_max_height_m;
+    if (!tall && (p.z() < o_.min_height_m || p.z() > o_.max_height_m)) continue;
     const Eigen::Vector2d w = (R * p + T_world_rig.t).head<2>();
     int i;
+    if (tall) {
+      if (Index(w, &i)) tall_[i] = 1;
+      continue;
+    }
     if (Index(w, &i)) count(hit_scans_, last_hit_, i);
     const double azimuth = std::atan2(p.y(), p.x()) + M_PI;
     const int bin = std::min(bins - 1, static_cast<int>(azimuth / (2 * M_PI) * bins));
@@ -131,12 +140,17 @@ void FloorGrid::Finish() {
   }
   structure_.clear();
   for (size_t i = 0; i < n; ++i)
-    if (hit_scans_[i] >= o_.min_scans_occupied)
+    if (hit_scans_[i] >= o_.min_scans_occupied && tall_[i])
       structure_.emplace_back(origin_.x() + (static_cast<double>(i % width_) + 0.5) * o_.cell_m,
                               origin_.y() + (static_cast<double>(i / width_) + 0.5) * o_.cell_m);
   // The per-scan stamps are only needed while scans are added.
   std::vector<int32_t>().swap(last_hit_);
   std::vector<int32_t>().swap(last_crossed_);
+}
+
+Eigen::Vector2i FloorGrid::CellOf(const Eigen::Vector2d& p) const {
+  return Eigen::Vector2i(static_cast<int>(std::floor((p.x() - origin_.x()) / o_.cell_m)),
+                         static_cast<int>(std::floor((p.y() - origin_.y()) / o_.cell_m)));
 }
 
 FloorGrid::State FloorGrid::At(const Eigen::Vector2d& p) const {
@@ -160,14 +174,38 @@ double FloorAgreement::ConflictFraction() const {
 FloorAgreement CompareFloors(const FloorGrid& x, const FloorGrid& y, const Pose& T_y_x) {
   FloorAgreement out;
   const Eigen::Matrix3d R = T_y_x.q.toRotationMatrix();
+  std::set<std::pair<int, int>> conflicts;  // x's cells
   for (const Eigen::Vector2d& c : x.structure()) {
     const Eigen::Vector2d p = (R * Eigen::Vector3d(c.x(), c.y(), 0) + T_y_x.t).head<2>();
-    if (y.NearOccupied(p))
+    if (y.NearOccupied(p)) {
       ++out.agreeing;
-    else if (y.At(p) == FloorGrid::State::kFree)
-      ++out.conflicting;
-    else
+    } else if (y.At(p) == FloorGrid::State::kFree) {
+      const Eigen::Vector2i k = x.CellOf(c);
+      conflicts.insert({k.x(), k.y()});
+    } else {
       ++out.unseen;
+    }
+  }
+  // Conflicting cells in 8-connected pieces; small pieces are set apart.
+  const double cell = x.options().cell_m;
+  while (!conflicts.empty()) {
+    std::vector<std::pair<int, int>> piece = {*conflicts.begin()};
+    conflicts.erase(conflicts.begin());
+    Eigen::AlignedBox2i box;
+    for (size_t i = 0; i < piece.size(); ++i) {
+      const auto [cx, cy] = piece[i];
+      box.extend(Eigen::Vector2i(cx, cy));
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const auto it = conflicts.find({cx + dx, cy + dy});
+          if (it == conflicts.end()) continue;
+          piece.push_back(*it);
+          conflicts.erase(it);
+        }
+    }
+    const double extent = ((box.max() - box.min()).cast<double>() + Eigen::Vector2d::Ones()).norm() * cell;
+    (extent >= x.options().min_conflict_extent_m ? out.conflicting : out.small_conflicts) +=
+        static_cast<int64_t>(piece.size());
   }
   return out;
 }

@@ -28,11 +28,21 @@ struct FloorGridOptions {
   double max_height_m = 1.8;         // ... and below ceilings and overhangs
   double azimuth_bin_deg = 0.5;      // one ray per bin, to its nearest return in the band
   double max_range_m = 30;           // farther returns neither occupy nor free cells
-  int min_scans_occupied = 2;        // a cell is structure when returns from this many scans fall in it
+  int min_scans_occupied = 2;        // a cell is structure when returns from this many scans fall in it ...
+  // ... and one of them reaches this band (rig frame): walls, pillars and shop
+  // fronts do, people (< 2 m) do not, so people who stood still in one
+  // recording are no evidence against a frame; ceilings stay above it.
+  double tall_min_height_m = 2.0;
+  double tall_max_height_m = 2.6;
   int min_scans_free = 2;            // a cell is free when this many scans' rays crossed it and none hit it
   // Occupied cells within this distance of the other map's returns count as
   // agreeing: the drift of two maps not yet optimised together.
   double agreement_margin_m = 0.3;
+  // Structure in the other map's free space counts as conflicting only in
+  // connected pieces at least this long (bounding-box diagonal): a person who
+  // stood still, or a bag, is smaller; a wall that a wrong frame puts across
+  // a corridor is not.
+  double min_conflict_extent_m = 0;
   bool Check(std::string* why = nullptr) const;
 };
 
@@ -52,8 +62,10 @@ class FloorGrid {
   State At(const Eigen::Vector2d& p) const;
   // Whether p lies within agreement_margin_m of a cell any scan hit.
   bool NearOccupied(const Eigen::Vector2d& p) const;
-  // Centres of the structure cells (occupied by min_scans_occupied scans).
+  // Centres of the structure cells (occupied by min_scans_occupied scans, tall).
   const std::vector<Eigen::Vector2d>& structure() const { return structure_; }
+  // Integer cell coordinates of a point (for grouping cells into pieces).
+  Eigen::Vector2i CellOf(const Eigen::Vector2d& p) const;
   int scans() const { return scans_; }
   const FloorGridOptions& options() const { return o_; }
 
@@ -63,6 +75,7 @@ class FloorGrid {
   Eigen::Vector2d origin_;
   int width_ = 0, height_ = 0;
   std::vector<uint16_t> hit_scans_, crossed_scans_;
+  std::vector<uint8_t> tall_;
   std::vector<int32_t> last_hit_, last_crossed_;  // scan that last counted the cell (once per scan)
   std::vector<uint8_t> near_occupied_;
   std::vector<Eigen::Vector2d> structure_;
@@ -73,8 +86,9 @@ class FloorGrid {
 // How the structure of `x`, moved into y's frame by T_y_x, sits in `y`.
 struct FloorAgreement {
   int64_t agreeing = 0;     // structure cells near y's returns
-  int64_t conflicting = 0;  // structure cells in y's free space
+  int64_t conflicting = 0;  // structure cells in y's free space, in pieces of min_conflict_extent_m or more
   int64_t unseen = 0;       // structure cells y did not observe
+  int64_t small_conflicts = 0;  // structure cells in y's free space in smaller pieces (people, objects moved)
   // conflicting / (agreeing + conflicting); 0 without overlap.
   double ConflictFraction() const;
 };

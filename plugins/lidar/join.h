@@ -30,9 +30,9 @@ std::vector<JoinHypothesis> ClusterHypotheses(const std::vector<JoinCandidate>& 
 
 struct JoinDecisionOptions {
   // A hypothesis explains the overlap when at most this fraction of the
-  // structure seen by both maps lies in the other's free space (people who
-  // stood still and objects moved between recordings stay well below it) ...
-  double max_conflict = 0.2;
+  // tall structure seen by both maps lies in the other's free space (a right
+  // frame leaves what the maps' drift and moved objects put there) ...
+  double max_conflict = 0.05;
   // ... over at least this many agreeing structure cells (each way).
   int64_t min_agreeing = 200;
   // A distinct hypothesis is a rival, and the join is refused as ambiguous,

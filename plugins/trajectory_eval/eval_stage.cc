@@ -106,5 +106,5 @@ void TrajectoryEval::Run(RunContext& ctx) {
 
 }  // namespace locforge::eval
 
-LOCFORGE_PLUGIN("trajectory_eval", "0.2.0", "Trajectory evaluation (ATE/RPE, evo-compatible; joins of multi-sequence maps)",
+LOCFORGE_PLUGIN("trajectory_eval", "0.2.1", "Trajectory evaluation (ATE/RPE, evo-compatible; joins of multi-sequence maps)",
                 locforge::eval::TrajectoryEval, locforge::eval::JoinsEval)
