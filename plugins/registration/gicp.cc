@@ -5,13 +5,15 @@
 #include <algorithm>
 #include <memory>
 #include <string>
+#include <utility>
 
+#include "gicp/cloud_cache.h"
 #include "gicp/factor.h"
 #include "gicp/kdtree.h"
-#include "locforge/plugin.h"
-#include "locforge/registration.h"
 #include "gicp/optimizer.h"
 #include "gicp/preprocess.h"
+#include "locforge/plugin.h"
+#include "locforge/registration.h"
 
 namespace locforge::gicp {
 namespace {
@@ -31,6 +33,11 @@ struct GicpOptions {
   double kernel_width = 0.25;                // In units of the Mahalanobis distance.
   std::string optimizer = "gauss_newton";    // gauss_newton | levenberg_marquardt.
   double lambda = 1e-6;                      // Damping (LM: initial value).
+  // Preprocessed clouds kept by this back-end instance (least recently used
+  // dropped first), so registering a cloud again skips its downsampling,
+  // KD-tree and covariances; 0 = off. An entry takes 12 bytes per input
+  // point and ~130 per point kept (points, tree, covariances).
+  int cache_clouds = 8;
 
   static void Declare(ParamSchema<GicpOptions>& s) {
     s.Add("voxel_size", &GicpOptions::voxel_size, "Voxel downsampling of both clouds, metres; 0 = off")
@@ -58,6 +65,9 @@ struct GicpOptions {
     s.Add("optimizer", &GicpOptions::optimizer, "Optimizer on SE(3)")
         .Choices({"gauss_newton", "levenberg_marquardt"});
     s.Add("lambda", &GicpOptions::lambda, "Damping added to the normal equations").Range(0, 1e6);
+    s.Add("cache_clouds", &GicpOptions::cache_clouds,
+          "Preprocessed clouds kept for repeated registrations (LRU); 0 = off")
+        .Range(0, 10000);
   }
 };
 
@@ -72,43 +82,25 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
   static StageMeta Meta() {
     StageMeta meta = {"registration", "gicp",
             "Generalized-ICP (Segal 2009), Eigen + OpenMP, small_gicp-style", {}, {}};
-    meta.version = "1.1.0";
+    meta.version = "1.2.0";
     return meta;
   }
-  explicit Gicp(GicpOptions o) : RegistrationComponent(std::move(o)) {}
+  explicit Gicp(GicpOptions o)
+      : RegistrationComponent(std::move(o)), cache_(static_cast<size_t>(options().cache_clouds)) {}
 
   RegistrationResult Align(const PointCloud& source_cloud, const PointCloud& target_cloud,
                            const Pose& initial, int threads) const override {
     const GicpOptions& o = options();
-    // The serial steps (voxel grid, tree build) of the two clouds run side by side.
-    Points source, target;
-#pragma omp parallel sections num_threads(std::min(threads, 2))
-    {
-#pragma omp section
-      source = VoxelDownsample(ToPoints(source_cloud), o.voxel_size);
-#pragma omp section
-      target = VoxelDownsample(ToPoints(target_cloud), o.voxel_size);
-    }
-    if (source.size() < 6 || target.size() < 6)
+    const auto [source_ptr, target_ptr] = Prepare(source_cloud, target_cloud, threads);
+    const PreprocessedCloud& source = *source_ptr;
+    const PreprocessedCloud& target = *target_ptr;
+    if (source.points.size() < 6 || target.points.size() < 6)
       throw InputError("registration/gicp: clouds need at least 6 points (source " +
-                       std::to_string(source.size()) + ", target " +
-                       std::to_string(target.size()) + ")");
-    std::unique_ptr<KdTree> source_tree_ptr, target_tree_ptr;
-#pragma omp parallel sections num_threads(std::min(threads, 2))
-    {
-#pragma omp section
-      source_tree_ptr = std::make_unique<KdTree>(source);
-#pragma omp section
-      target_tree_ptr = std::make_unique<KdTree>(target);
-    }
-    const KdTree& source_tree = *source_tree_ptr;
-    const KdTree& target_tree = *target_tree_ptr;
-    const Covariances source_cov =
-        EstimateCovariances(source, source_tree, o.k_neighbors, o.covariance_epsilon, threads);
-    const Covariances target_cov =
-        EstimateCovariances(target, target_tree, o.k_neighbors, o.covariance_epsilon, threads);
+                       std::to_string(source.points.size()) + ", target " +
+                       std::to_string(target.points.size()) + ")");
 
-    const GicpInputs in{&source, &source_cov, &target, &target_cov, &target_tree};
+    const GicpInputs in{&source.points, &source.covariances, &target.points, &target.covariances,
+                        &target.tree};
     FactorOptions f;
     f.max_correspondence_distance = o.max_correspondence_distance;
     f.kernel = KernelOf(o.robust_kernel);
@@ -128,12 +120,44 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
     r.converged = out.converged;
     r.iterations = out.iterations;
     r.num_inliers = out.system.inliers;
-    r.inlier_fraction = static_cast<double>(out.system.inliers) / static_cast<double>(source.size());
+    r.inlier_fraction = static_cast<double>(out.system.inliers) / static_cast<double>(source.points.size());
     r.final_error = out.system.inliers ? out.system.cost / static_cast<double>(out.system.inliers) : 0;
     r.T_target_source = Pose(Eigen::Quaterniond(out.T.linear()), out.T.translation());
     r.information = out.system.H;
     return r;
   }
+
+ private:
+  using Prepared = std::shared_ptr<const PreprocessedCloud>;
+
+  // Both clouds preprocessed, from the cache when it holds them. Two fresh
+  // clouds are preprocessed side by side, one per thread; a single one uses
+  // all threads for its covariances. Same results for any thread count.
+  std::pair<Prepared, Prepared> Prepare(const PointCloud& source_cloud, const PointCloud& target_cloud,
+                                        int threads) const {
+    const GicpOptions& o = options();
+    const PreprocessOptions p{o.voxel_size, o.k_neighbors, o.covariance_epsilon};
+    Prepared source = cache_.Find(source_cloud, p), target = cache_.Find(target_cloud, p);
+    const auto make = [&](const PointCloud& cloud, int t) {
+      return std::make_shared<const PreprocessedCloud>(Preprocess(cloud, p, t));
+    };
+    if (!source && !target && threads > 1) {
+#pragma omp parallel sections num_threads(2)
+      {
+#pragma omp section
+        source = make(source_cloud, 1);
+#pragma omp section
+        target = make(target_cloud, 1);
+      }
+      source = cache_.Insert(source_cloud, p, source);
+      target = cache_.Insert(target_cloud, p, target);
+    }
+    if (!source) source = cache_.Insert(source_cloud, p, make(source_cloud, threads));
+    if (!target) target = cache_.Insert(target_cloud, p, make(target_cloud, threads));
+    return {source, target};
+  }
+
+  mutable CloudCache cache_;
 };
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <thread>
 
 #include "locforge/pointcloud_io.h"
 #include "locforge/registration.h"
@@ -177,6 +178,45 @@ TEST(RegistrationPlugins, RefuseTooSmallClouds) {
       EXPECT_EQ(e.code(), LF_BAD_INPUT) << e.what();
     }
   }
+}
+
+// Results of our GICP with its cache of preprocessed clouds are bit-identical
+// to those without it: on a miss, on a hit, with the clouds' roles swapped,
+// at 1 and 2 threads, and from concurrent registrations on one instance.
+TEST(RegistrationPlugins, GicpCacheLeavesResultsBitIdentical) {
+  const PointCloud target = Scene(12000, 21);
+  const Pose gt = MakePose(0.02, -0.01, 0.04, 0.2, -0.1, 0.03);
+  const PointCloud source = Transformed(Scene(12000, 22), gt.Inverse(), 0.005, 23);
+  const Params base = {{"voxel_size", "0.1"}, {"max_correspondence_distance", "1.0"}};
+  Params off = base, on = base;
+  off.emplace_back("cache_clouds", "0");
+  on.emplace_back("cache_clouds", "4");
+  const auto cold = Make("registration/gicp", off), warm = Make("registration/gicp", on);
+  const auto same = [](const RegistrationResult& a, const RegistrationResult& b) {
+    return a.converged == b.converged && a.iterations == b.iterations && a.num_inliers == b.num_inliers &&
+           a.final_error == b.final_error && a.T_target_source.q.coeffs() == b.T_target_source.q.coeffs() &&
+           a.T_target_source.t == b.T_target_source.t && a.information == b.information;
+  };
+  const std::vector<Pose> guesses = {Pose(), MakePose(0, 0, 0.03, 0.1, 0, 0), MakePose(0.01, 0, -0.02, 0, 0.1, 0)};
+  std::vector<RegistrationResult> expected;
+  for (const Pose& g : guesses) expected.push_back(cold.Align(source, target, g, 1));
+  EXPECT_LT(RotErrDeg(expected[0].T_target_source, gt), 0.05);
+  for (int threads : {1, 2})
+    for (size_t k = 0; k < guesses.size(); ++k) {  // the first call misses, the others hit
+      EXPECT_TRUE(same(cold.Align(source, target, guesses[k], threads), expected[k])) << threads << " " << k;
+      EXPECT_TRUE(same(warm.Align(source, target, guesses[k], threads), expected[k])) << threads << " " << k;
+    }
+  EXPECT_TRUE(same(warm.Align(target, source, Pose(), 2), cold.Align(target, source, Pose(), 1)));
+  // A source moved by 1 mm (same size) is a miss, and registers as it should.
+  const PointCloud moved = Transformed(source, MakePose(0, 0, 0, 0.001, 0, 0), 0, 0);
+  EXPECT_TRUE(same(warm.Align(moved, target, Pose(), 2), cold.Align(moved, target, Pose(), 2)));
+  // Concurrent registrations on the one instance.
+  std::vector<RegistrationResult> got(8);
+  std::vector<std::thread> workers;
+  for (size_t w = 0; w < got.size(); ++w)
+    workers.emplace_back([&, w] { got[w] = warm.Align(source, target, guesses[w % guesses.size()], 1 + w % 2); });
+  for (auto& w : workers) w.join();
+  for (size_t w = 0; w < got.size(); ++w) EXPECT_TRUE(same(got[w], expected[w % guesses.size()])) << w;
 }
 
 Pose ReadMatrix(const std::filesystem::path& file) {

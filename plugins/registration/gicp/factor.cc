@@ -44,6 +44,7 @@ double RobustCost(RobustKernel kernel, double width, double e) {
 LinearSystem Linearize(const GicpInputs& in, const Eigen::Isometry3d& T, const FactorOptions& o,
                        int threads) {
   const Points& source = *in.source;
+  const Points& target = *in.target;
   const int64_t n = static_cast<int64_t>(source.size());
   const double max_sq = o.max_correspondence_distance * o.max_correspondence_distance;
   const Eigen::Matrix3d R = T.linear();
@@ -60,14 +61,20 @@ LinearSystem Linearize(const GicpInputs& in, const Eigen::Isometry3d& T, const F
       // Segal et al. eq. 2: combined covariance of the pair in the target frame.
       const Eigen::Matrix3d C = (*in.target_cov)[j] + R * (*in.source_cov)[i] * R.transpose();
       const Eigen::Matrix3d M = C.inverse();
-      const Eigen::Vector3d r = (*in.target)[j] - p;
-      const double e = r.dot(M * r);
+      const Eigen::Vector3d r = target[j] - p;
+      const Eigen::Vector3d Mr = M * r;
+      const double e = r.dot(Mr);
       const double w = RobustWeight(o.kernel, o.kernel_width, e);
-      Eigen::Matrix<double, 3, 6> J;
-      J << Skew(p), -Eigen::Matrix3d::Identity();
-      const Eigen::Matrix<double, 6, 3> JtM = J.transpose() * M;
-      sys.H.noalias() += w * JtM * J;
-      sys.b.noalias() += w * JtM * r;
+      // J = [ [p]x, -I ] in blocks, with [p]x^T = -[p]x and PM = [p]x M:
+      // J^T M J = [ PM [p]x^T, PM ; PM^T, M ],  J^T M r = [ -p x Mr ; -Mr ].
+      // The lower-left block is filled from the upper-right one at the end.
+      const Eigen::Matrix3d P = Skew(p);
+      const Eigen::Matrix3d PM = P * M;
+      sys.H.topLeftCorner<3, 3>().noalias() -= w * PM * P;
+      sys.H.topRightCorner<3, 3>().noalias() += w * PM;
+      sys.H.bottomRightCorner<3, 3>().noalias() += w * M;
+      sys.b.head<3>() -= w * p.cross(Mr);
+      sys.b.tail<3>() -= w * Mr;
       sys.cost += RobustCost(o.kernel, o.kernel_width, e);
       ++sys.inliers;
     }
@@ -79,6 +86,7 @@ LinearSystem Linearize(const GicpInputs& in, const Eigen::Isometry3d& T, const F
     total.cost += s.cost;
     total.inliers += s.inliers;
   }
+  total.H.bottomLeftCorner<3, 3>() = total.H.topRightCorner<3, 3>().transpose();
   return total;
 }
 

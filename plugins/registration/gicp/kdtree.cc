@@ -10,103 +10,151 @@ namespace {
 constexpr int kLeafSize = 12;
 }
 
-KdTree::KdTree(const Points& points) : points_(points), order_(points.size()) {
+KdTree::KdTree(const Points& points) : order_(points.size()) {
   std::iota(order_.begin(), order_.end(), 0);
   nodes_.reserve(2 * points.size() / kLeafSize + 2);
-  if (!points.empty()) Build(0, static_cast<int>(points.size()));
+  if (points.empty()) return;
+  Build(points, 0, static_cast<int>(points.size()));
+  x_.resize(points.size());
+  y_.resize(points.size());
+  z_.resize(points.size());
+  lo_ = hi_ = points[0];
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d& p = points[order_[i]];
+    x_[i] = p.x();
+    y_[i] = p.y();
+    z_[i] = p.z();
+    lo_ = lo_.cwiseMin(p);
+    hi_ = hi_.cwiseMax(p);
+  }
 }
 
-int KdTree::Build(int begin, int end) {
+// Built on order_ (indices into `points`), so nth_element moves 4-byte
+// indices; the constructor gathers the points afterwards.
+int KdTree::Build(const Points& points, int begin, int end) {
   const int id = static_cast<int>(nodes_.size());
-  nodes_.push_back(Node{begin, end});
+  nodes_.push_back(Node{-1, begin, end});
   if (end - begin <= kLeafSize) return id;
-  Eigen::Vector3d lo = points_[order_[begin]], hi = lo;
+  Eigen::Vector3d lo = points[order_[begin]], hi = lo;
   for (int i = begin + 1; i < end; ++i) {
-    lo = lo.cwiseMin(points_[order_[i]]);
-    hi = hi.cwiseMax(points_[order_[i]]);
+    lo = lo.cwiseMin(points[order_[i]]);
+    hi = hi.cwiseMax(points[order_[i]]);
   }
   int axis;
   (hi - lo).maxCoeff(&axis);
   const int mid = begin + (end - begin) / 2;
-  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
-                   [&](int a, int b) { return points_[a][axis] < points_[b][axis]; });
-  const double split = points_[order_[mid]][axis];
-  const int left = Build(begin, mid);
-  const int right = Build(mid, end);
+  const auto less = [&](int a, int b) { return points[a][axis] < points[b][axis]; };
+  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end, less);
+  const double high = points[order_[mid]][axis];  // the right half's smallest
+  const double low = points[*std::max_element(order_.begin() + begin, order_.begin() + mid, less)][axis];
+  Build(points, begin, mid);  // the left child is node id + 1
+  const int right = Build(points, mid, end);
   Node& n = nodes_[id];
   n.axis = axis;
-  n.split = split;
-  n.left = left;
+  n.low = low;
+  n.high = high;
   n.right = right;
   return id;
 }
 
-// Depth-first descent, nearer child first; `v.bound()` is the current
-// squared search radius and `v.Add(i, d2)` offers a candidate.
+// Depth-first, nearer child first, pruned with an incremental lower bound of
+// the squared distance to a node's cell (nanoflann's trick): `axis_sq_dist`
+// holds, per axis, the squared distance from q to the cell's slab, and
+// `min_sq_dist` their sum. Iterative: each descent to a leaf stacks the
+// farther children, popped (deepest first) when still within `v.bound()`,
+// the current squared search radius; `v.Add(i, d2)` offers the point at tree
+// position i.
 template <typename Visitor>
-void KdTree::Search(int node, const Eigen::Vector3d& q, Visitor& v) const {
-  const Node& n = nodes_[node];
-  if (n.axis < 0) {
-    for (int i = n.begin; i < n.end; ++i) {
-      const int idx = order_[i];
-      v.Add(idx, (points_[idx] - q).squaredNorm());
+void KdTree::SearchFromRoot(const Eigen::Vector3d& q, Visitor& v) const {
+  struct Cell {
+    int node;
+    double min_sq_dist;
+    Eigen::Vector3d axis_sq_dist;
+  };
+  Cell stack[64];  // deeper than any tree of < 2^31 points
+  int top = 0;
+  const Eigen::Vector3d to_box = (q.cwiseMax(lo_).cwiseMin(hi_) - q).cwiseAbs2();
+  stack[top++] = Cell{0, to_box.sum(), to_box};
+  while (top > 0) {
+    const Cell cell = stack[--top];
+    if (cell.min_sq_dist >= v.bound()) continue;
+    int node = cell.node;
+    for (const Node* n = &nodes_[node]; n->axis >= 0; n = &nodes_[node]) {
+      const double to_low = q[n->axis] - n->low, to_high = q[n->axis] - n->high;
+      const bool left_first = to_low + to_high < 0;  // q nearer the left child's side of the gap
+      const double cut = left_first ? to_high * to_high : to_low * to_low;
+      Cell far{left_first ? n->right : node + 1, cell.min_sq_dist + cut - cell.axis_sq_dist[n->axis],
+               cell.axis_sq_dist};
+      far.axis_sq_dist[n->axis] = cut;
+      if (far.min_sq_dist < v.bound()) stack[top++] = far;
+      node = left_first ? node + 1 : n->right;
     }
-    return;
+    // A leaf: all its distances first (a loop the compiler vectorises), then the offers.
+    const Node& leaf = nodes_[node];
+    double d2[kLeafSize];
+    const int m = leaf.end - leaf.begin;
+    const double *x = &x_[leaf.begin], *y = &y_[leaf.begin], *z = &z_[leaf.begin];
+    for (int i = 0; i < m; ++i) {
+      const double dx = x[i] - q.x(), dy = y[i] - q.y(), dz = z[i] - q.z();
+      d2[i] = dx * dx + dy * dy + dz * dz;
+    }
+    for (int i = 0; i < m; ++i)
+      if (d2[i] < v.bound()) v.Add(leaf.begin + i, d2[i]);
   }
-  const double diff = q[n.axis] - n.split;
-  const int near = diff < 0 ? n.left : n.right;
-  const int far = diff < 0 ? n.right : n.left;
-  Search(near, q, v);
-  if (diff * diff < v.bound()) Search(far, q, v);
 }
 
 bool KdTree::Nearest(const Eigen::Vector3d& q, double max_sq_dist, int* index,
                      double* sq_dist) const {
   struct Best {
     double d2;
-    int idx = -1;
+    int pos = -1;
     double bound() const { return d2; }
     void Add(int i, double d) {
       if (d < d2) {
         d2 = d;
-        idx = i;
+        pos = i;
       }
     }
   } best{max_sq_dist};
   if (nodes_.empty()) return false;
-  Search(0, q, best);
-  if (best.idx < 0) return false;
-  *index = best.idx;
+  SearchFromRoot(q, best);
+  if (best.pos < 0) return false;
+  *index = order_[best.pos];
   *sq_dist = best.d2;
   return true;
 }
 
 void KdTree::KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
                       std::vector<double>* sq_dists) const {
-  // A sorted array of the k best so far (k is small: insertion is cheapest).
+  // The k best so far, sorted, in caller-provided arrays (k is small:
+  // insertion from the back is cheapest).
   struct KBest {
-    int k;
-    std::vector<int>* idx;
-    std::vector<double>* d2;
-    double bound() const {
-      return static_cast<int>(d2->size()) < k ? std::numeric_limits<double>::infinity()
-                                              : d2->back();
-    }
+    int k, n = 0;
+    int* pos;
+    double* d2;
+    double worst = std::numeric_limits<double>::infinity();  // d2[k - 1] once full
+    double bound() const { return worst; }
     void Add(int i, double d) {
-      if (d >= bound()) return;
-      if (static_cast<int>(d2->size()) == k) {
-        d2->pop_back();
-        idx->pop_back();
+      if (d >= worst) return;
+      int j = n < k ? n++ : k - 1;
+      for (; j > 0 && d2[j - 1] > d; --j) {
+        d2[j] = d2[j - 1];
+        pos[j] = pos[j - 1];
       }
-      const auto at = std::upper_bound(d2->begin(), d2->end(), d);
-      idx->insert(idx->begin() + (at - d2->begin()), i);
-      d2->insert(at, d);
+      d2[j] = d;
+      pos[j] = i;
+      if (n == k) worst = d2[k - 1];
     }
-  } best{k, indices, sq_dists};
-  indices->clear();
-  sq_dists->clear();
-  if (nodes_.empty() || k <= 0) return;
-  Search(0, q, best);
+  };
+  k = std::max(0, std::min(k, static_cast<int>(size())));
+  indices->resize(k);
+  sq_dists->resize(k);
+  if (k == 0) return;
+  KBest best{k, 0, indices->data(), sq_dists->data()};
+  SearchFromRoot(q, best);
+  indices->resize(best.n);
+  sq_dists->resize(best.n);
+  for (int& i : *indices) i = order_[i];
 }
 
 }  // namespace locforge::gicp

@@ -15,29 +15,41 @@ using Points = std::vector<Eigen::Vector3d>;
 
 class KdTree {
  public:
-  explicit KdTree(const Points& points);  // keeps a reference: `points` must outlive the tree
+  // Keeps its own copy of `points` in tree order (each leaf contiguous, one
+  // array per axis so a leaf's distances vectorise); searches return indices
+  // into `points`.
+  explicit KdTree(const Points& points);
 
   // Index of the nearest point and its squared distance; false when no point
   // lies within sqrt(max_sq_dist).
   bool Nearest(const Eigen::Vector3d& q, double max_sq_dist, int* index, double* sq_dist) const;
   // Up to k nearest points, closest first (fewer when the cloud is smaller).
+  // Reuses the vectors' storage: no allocation once they have held k items.
   void KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
                 std::vector<double>* sq_dists) const;
 
- private:
-  struct Node {
-    int begin = 0, end = 0;  // range in order_ (leaves)
-    int left = -1, right = -1;
-    int axis = -1;           // -1 for a leaf
-    double split = 0;
-  };
-  int Build(int begin, int end);
-  template <typename Visitor>
-  void Search(int node, const Eigen::Vector3d& q, Visitor& v) const;
+  size_t size() const { return order_.size(); }
+  // Input indices in tree order: visiting points in this order keeps
+  // successive queries close to each other.
+  const std::vector<int>& order() const { return order_; }
 
-  const Points& points_;
-  std::vector<int> order_;
+ private:
+  // Inner nodes split on `axis`; the left child (the next node) holds the
+  // points with coordinate <= low, the right child those >= high.
+  struct Node {
+    int axis = -1;  // -1 for a leaf
+    int begin = 0, end = 0;  // leaf: range in tree order
+    int right = -1;
+    double low = 0, high = 0;
+  };
+  int Build(const Points& points, int begin, int end);
+  template <typename Visitor>
+  void SearchFromRoot(const Eigen::Vector3d& q, Visitor& v) const;
+
+  std::vector<double> x_, y_, z_;  // the points in tree order
+  std::vector<int> order_;         // input index of each
   std::vector<Node> nodes_;
+  Eigen::Vector3d lo_, hi_;  // bounding box of all points
 };
 
 }  // namespace locforge::gicp

@@ -2,7 +2,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
-#include <unordered_map>
 
 namespace locforge::gicp {
 
@@ -12,61 +11,141 @@ Points ToPoints(const PointCloud& cloud) {
   return out;
 }
 
-Points VoxelDownsample(const Points& points, double voxel_size) {
-  if (voxel_size <= 0) return points;
+namespace {
+
+// Open-addressing map from voxel key to voxel index (linear probing, grown
+// at half load): no allocation per voxel, unlike std::unordered_map.
+class VoxelIndex {
+ public:
+  // The index of `key`, inserting `next` when absent (then *inserted).
+  int FindOrInsert(uint64_t key, int next, bool* inserted) {
+    if (2 * (size_ + 1) > keys_.size()) Grow();
+    size_t slot = Slot(key);
+    for (; keys_[slot] != kEmpty; slot = (slot + 1) & (keys_.size() - 1))
+      if (keys_[slot] == key) {
+        *inserted = false;
+        return values_[slot];
+      }
+    keys_[slot] = key;
+    values_[slot] = next;
+    ++size_;
+    *inserted = true;
+    return next;
+  }
+
+ private:
+  static constexpr uint64_t kEmpty = ~0ull;  // keys use 63 bits
+  size_t Slot(uint64_t key) const { return (key * 0x9E3779B97F4A7C15ull) >> (64 - bits_); }
+  void Grow() {
+    std::vector<uint64_t> keys(size_t{1} << ++bits_, kEmpty);
+    std::vector<int> values(keys.size());
+    keys.swap(keys_);
+    values.swap(values_);
+    for (size_t i = 0; i < keys.size(); ++i) {
+      if (keys[i] == kEmpty) continue;
+      size_t slot = Slot(keys[i]);
+      while (keys_[slot] != kEmpty) slot = (slot + 1) & (keys_.size() - 1);
+      keys_[slot] = keys[i];
+      values_[slot] = values[i];
+    }
+  }
+  int bits_ = 9;
+  size_t size_ = 0;
+  std::vector<uint64_t> keys_ = std::vector<uint64_t>(size_t{1} << 9, kEmpty);
+  std::vector<int> values_ = std::vector<int>(size_t{1} << 9);
+};
+
+template <typename Point>
+Points VoxelCentroids(const std::vector<Point>& points, double voxel_size) {
   // 21 bits per axis: +-1M voxels, e.g. +-100 km at 10 cm.
   auto key = [&](const Eigen::Vector3d& p) {
-    const Eigen::Vector3d v = (p / voxel_size).array().floor();
     uint64_t k = 0;
-    for (int a = 0; a < 3; ++a)
-      k = (k << 21) | (static_cast<uint64_t>(static_cast<int64_t>(v[a]) + (1 << 20)) & 0x1FFFFF);
+    for (int a = 0; a < 3; ++a) {
+      const double s = p[a] / voxel_size;
+      int64_t v = static_cast<int64_t>(s);  // floor(s), without a libm call
+      v -= s < static_cast<double>(v);
+      k = (k << 21) | (static_cast<uint64_t>(v + (1 << 20)) & 0x1FFFFF);
+    }
     return k;
   };
-  std::unordered_map<uint64_t, int> voxel_of;
-  voxel_of.reserve(points.size());
+  VoxelIndex voxel_of;
   Points sum;
   std::vector<int> count;
-  for (const Eigen::Vector3d& p : points) {
+  for (const Point& point : points) {
+    const Eigen::Vector3d p = point.template cast<double>();
     if (!p.allFinite()) continue;
-    const auto [it, inserted] = voxel_of.emplace(key(p), static_cast<int>(sum.size()));
+    bool inserted;
+    const int v = voxel_of.FindOrInsert(key(p), static_cast<int>(sum.size()), &inserted);
     if (inserted) {
       sum.push_back(Eigen::Vector3d::Zero());
       count.push_back(0);
     }
-    sum[it->second] += p;
-    ++count[it->second];
+    sum[v] += p;
+    ++count[v];
   }
   for (size_t i = 0; i < sum.size(); ++i) sum[i] /= count[i];
   return sum;
 }
 
+}  // namespace
+
+Points VoxelDownsample(const Points& points, double voxel_size) {
+  return voxel_size > 0 ? VoxelCentroids(points, voxel_size) : points;
+}
+
+Points VoxelDownsample(const PointCloud& cloud, double voxel_size) {
+  return voxel_size > 0 ? VoxelCentroids(cloud.points, voxel_size) : ToPoints(cloud);
+}
+
+namespace {
+
+// Plane-regularised covariance of `n` neighbours (one pass: sums of the
+// offsets d from the query point and of d d^T; the offsets are small, so the
+// cancellation in E[d d^T] - E[d] E[d]^T is harmless).
+Eigen::Matrix3d PlaneCovariance(const Points& points, const Eigen::Vector3d& q, const int* idx, int n,
+                                double epsilon) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d sum_sq = Eigen::Matrix3d::Zero();
+  for (int j = 0; j < n; ++j) {
+    const Eigen::Vector3d d = points[idx[j]] - q;
+    sum += d;
+    sum_sq.noalias() += d * d.transpose();
+  }
+  const Eigen::Vector3d mean = sum / n;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(sum_sq / n - mean * mean.transpose());
+  // Eigenvalues ascending: the first eigenvector is the surface normal, and
+  // V diag(epsilon, 1, 1) V^T = I - (1 - epsilon) n n^T.
+  const Eigen::Vector3d normal = eig.eigenvectors().col(0);
+  return Eigen::Matrix3d::Identity() - (1 - epsilon) * normal * normal.transpose();
+}
+
+}  // namespace
+
 Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k, double epsilon,
                                 int threads) {
   Covariances out(points.size());
+  const std::vector<int>& order = tree.order();
 #pragma omp parallel num_threads(threads)
   {
     std::vector<int> idx;
     std::vector<double> d2;
 #pragma omp for schedule(static)
-    for (int64_t i = 0; i < static_cast<int64_t>(points.size()); ++i) {
+    for (int64_t t = 0; t < static_cast<int64_t>(order.size()); ++t) {
+      const int i = order[t];  // in tree order: successive queries are neighbours
       tree.KNearest(points[i], k, &idx, &d2);
-      if (idx.size() < 3) {
-        out[i] = Eigen::Matrix3d::Identity();
-        continue;
-      }
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (int j : idx) mean += points[j];
-      mean /= static_cast<double>(idx.size());
-      Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
-      for (int j : idx) c += (points[j] - mean) * (points[j] - mean).transpose();
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-      eig.computeDirect(c / static_cast<double>(idx.size()));
-      // Eigenvalues ascending: the first eigenvector is the surface normal.
-      const Eigen::Vector3d values(epsilon, 1.0, 1.0);
-      out[i] = eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
+      out[i] = idx.size() < 3 ? Eigen::Matrix3d::Identity()
+                              : PlaneCovariance(points, points[i], idx.data(), static_cast<int>(idx.size()), epsilon);
     }
   }
   return out;
+}
+
+PreprocessedCloud Preprocess(const PointCloud& cloud, const PreprocessOptions& o, int threads) {
+  Points points = VoxelDownsample(cloud, o.voxel_size);
+  KdTree tree(points);
+  Covariances covariances = EstimateCovariances(points, tree, o.k_neighbors, o.covariance_epsilon, threads);
+  return PreprocessedCloud{std::move(points), std::move(tree), std::move(covariances)};
 }
 
 }  // namespace locforge::gicp

@@ -19,14 +19,37 @@ Points ToPoints(const PointCloud& cloud);
 // points), in order of first occurrence, so the output is deterministic.
 // voxel_size <= 0 returns the input.
 Points VoxelDownsample(const Points& points, double voxel_size);
+Points VoxelDownsample(const PointCloud& cloud, double voxel_size);  // = of ToPoints(cloud)
 
 // Covariance of each point's k-neighbourhood, regularised to a plane
 // (Segal et al. 2009, GICP, Sec. III-B "plane-to-plane"): the eigenvalues
 // become (1, 1, epsilon), so the Mahalanobis cost penalises distance along
 // the local normal 1/epsilon times more than within the plane. Points with
 // fewer than 3 neighbours get epsilon-free identity (point-to-point).
+// Each point's covariance depends on nothing else: same for any thread count.
 Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k, double epsilon,
                                 int threads);
+
+struct PreprocessOptions {
+  double voxel_size = 0;  // 0 = no downsampling
+  int k_neighbors = 20;
+  double covariance_epsilon = 1e-3;
+  bool operator==(const PreprocessOptions& o) const {
+    return voxel_size == o.voxel_size && k_neighbors == o.k_neighbors &&
+           covariance_epsilon == o.covariance_epsilon;
+  }
+};
+
+// A cloud ready for GICP: downsampled points, their KD-tree and covariances.
+struct PreprocessedCloud {
+  Points points;
+  KdTree tree;
+  Covariances covariances;
+};
+
+// Deterministic: the same cloud and options give bit-identical results for
+// any thread count.
+PreprocessedCloud Preprocess(const PointCloud& cloud, const PreprocessOptions& o, int threads);
 
 }  // namespace locforge::gicp
 
