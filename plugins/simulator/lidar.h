@@ -47,8 +47,10 @@ struct LidarScan {
 // Unit direction of a laser in the sensor frame (x forward, z up, azimuth counter-clockwise).
 Eigen::Vector3d LaserDirection(const LidarOptions& lidar, int ring, int column);
 
+// `exhaustive_people` tests every person on every ray, as the grid-free
+// reference that the default (people near each ray only) equals bit for bit.
 LidarScan SimulateScan(const World& world, const Trajectory& trajectory, const LidarOptions& lidar,
-                       double start, uint64_t seed);
+                       double start, uint64_t seed, bool exhaustive_people = false);
 
 }  // namespace locforge::sim
 

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "people.h"
+#include "people_grid.h"
 #include "scene.h"
 #include "texture.h"
 
@@ -65,6 +66,23 @@ class World {
   // and the given people cylinders (Crowd::At(time)).
   bool Cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const std::vector<Cylinder>& people,
             Hit* hit, double t_min = 1e-6) const;
+
+  // The same hit as Cast with every person, testing only the items `grid`
+  // puts near the ray: item k stands for the cylinders [first, last) =
+  // cylinders_of(k), consecutive in Cast's order. `scratch` holds the
+  // candidates (one per thread).
+  template <typename CylindersOf>
+  bool CastNear(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const PeopleGrid& grid,
+                const CylindersOf& cylinders_of, std::vector<int>* scratch, Hit* hit,
+                double t_min = 1e-6) const {
+    bvh_.Intersect(o, d, t_min, hit);
+    grid.Candidates(o, d, t_min, hit->t, scratch);
+    for (int k : *scratch) {
+      const auto [first, last] = cylinders_of(k);
+      for (const Cylinder* c = first; c != last; ++c) IntersectCylinder(*c, o, d, t_min, hit);
+    }
+    return hit->hit();
+  }
 
   // Surface colour (RGB, 0-255) at a hit; `footprint_m` is the size of the
   // pixel on the surface, used to pick the mip level.

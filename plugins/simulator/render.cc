@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace locforge::sim {
 namespace {
@@ -67,6 +68,12 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
   }
   if (row_end < 0 || row_end > h) row_end = h;
   const std::vector<Cylinder> visible = VisiblePeople(people, camera, T_world_camera);
+  std::vector<PeopleGrid::Bound> bounds;
+  if (!o.exhaustive_people)
+    for (const Cylinder& c : visible) bounds.push_back({c.center, c.radius, c.z0, c.z1});
+  const PeopleGrid grid(bounds);
+  const auto cylinder_of = [&](int k) { return std::make_pair(&visible[k], &visible[k] + 1); };
+  std::vector<int> candidates;
   const Eigen::Matrix3d R = T_world_camera.R();
   const Eigen::Vector3d origin = T_world_camera.t;
   const double pixel_angle = 1.0 / camera.fx;
@@ -76,7 +83,8 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
       const Eigen::Vector3d d = (R * camera.Ray(x + 0.5, y + 0.5)).normalized();
       Hit hit;
       Eigen::Vector3f color = Eigen::Vector3f::Zero();
-      if (world.Cast(origin, d, visible, &hit)) {
+      if (o.exhaustive_people ? world.Cast(origin, d, visible, &hit)
+                              : world.CastNear(origin, d, grid, cylinder_of, &candidates, &hit)) {
         const double cos_view = std::max(0.25, std::abs(hit.normal.dot(d)));
         color = world.Albedo(hit, hit.t * pixel_angle / cos_view);
         if (o.shading) {
