@@ -4,11 +4,13 @@
 #define LOCFORGE_SIM_RAYCAST_H_
 
 #include <Eigen/Core>
+#include <cmath>
 #include <limits>
 #include <vector>
 
 #include "people.h"
 #include "people_grid.h"
+#include "sah_bvh.h"
 #include "scene.h"
 #include "texture.h"
 
@@ -24,6 +26,28 @@ struct Hit {
   double period_m = 1;  // metres per texture period (for mip selection)
   bool hit() const { return quad >= 0 || person >= 0; }
 };
+
+// Where the ray o + t d crosses the plane of quad q (false when parallel).
+// Every ray-quad test goes through these two functions, so all compute the
+// same numbers for the same quad and ray.
+inline bool CrossQuadPlane(const Quad& q, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                           double* denom, double* t) {
+  *denom = q.normal.dot(d);
+  if (std::abs(*denom) < 1e-12) return false;
+  *t = q.normal.dot(q.origin - o) / *denom;
+  return true;
+}
+// Whether the crossing at t lies on the quad: (a, b) in edge units, uu and vv
+// the squared edge lengths.
+inline bool InsideQuad(const Quad& q, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t,
+                       double* a, double* b, double* uu, double* vv) {
+  const Eigen::Vector3d rel = o + t * d - q.origin;
+  *uu = q.u_edge.squaredNorm();
+  *vv = q.v_edge.squaredNorm();
+  *a = rel.dot(q.u_edge) / *uu;
+  *b = rel.dot(q.v_edge) / *vv;
+  return !(*a < 0 || *a > 1 || *b < 0 || *b > 1);
+}
 
 // Ray-quad and ray-cylinder tests; t must lie in (t_min, hit->t).
 bool IntersectQuad(const Quad& q, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
@@ -67,15 +91,15 @@ class World {
   bool Cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const std::vector<Cylinder>& people,
             Hit* hit, double t_min = 1e-6) const;
 
-  // The same hit as Cast with every person, testing only the items `grid`
-  // puts near the ray: item k stands for the cylinders [first, last) =
+  // The same hit as Cast with every person, bit for bit, faster: the quads
+  // through SahBvh, and only the people items that `grid` puts near the ray: item k stands for the cylinders [first, last) =
   // cylinders_of(k), consecutive in Cast's order. `scratch` holds the
   // candidates (one per thread).
   template <typename CylindersOf>
   bool CastNear(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const PeopleGrid& grid,
                 const CylindersOf& cylinders_of, std::vector<int>* scratch, Hit* hit,
                 double t_min = 1e-6) const {
-    bvh_.Intersect(o, d, t_min, hit);
+    NearestQuad(o, d, t_min, hit);
     grid.Candidates(o, d, t_min, hit->t, scratch);
     for (int k : *scratch) {
       const auto [first, last] = cylinders_of(k);
@@ -90,10 +114,14 @@ class World {
   bool Glossy(const Hit& hit) const;
 
  private:
+  // The quad QuadBvh::Intersect would report, found with the faster SahBvh.
+  void NearestQuad(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, Hit* hit) const;
+
   const Scene& scene_;
   const Crowd& crowd_;
   std::vector<Quad> quads_;
-  QuadBvh bvh_;
+  QuadBvh bvh_;  // its test order decides ties: the reference
+  SahBvh sah_;
   std::vector<const Texture*> material_textures_;
   std::vector<const Texture*> person_textures_;
 };
