@@ -33,7 +33,7 @@ Eigen::Vector3d LaserDirection(const LidarOptions& lidar, int ring, int column) 
 }
 
 LidarScan SimulateScan(const World& world, const Trajectory& trajectory, const LidarOptions& lidar,
-                       double start, uint64_t seed, bool exhaustive_people) {
+                       double start, uint64_t seed, bool reference_raycast) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0, lidar.range_sigma);
   LidarScan scan;
@@ -47,7 +47,7 @@ LidarScan SimulateScan(const World& world, const Trajectory& trajectory, const L
   const Crowd& crowd = world.crowd();
   const int num_people = static_cast<int>(crowd.people().size());
   const double span = columns * column_s;
-  std::vector<PeopleGrid::Bound> bounds(exhaustive_people ? 0 : num_people);
+  std::vector<PeopleGrid::Bound> bounds(reference_raycast ? 0 : num_people);
   for (int i = 0; i < static_cast<int>(bounds.size()); ++i) {
     const auto cylinders = crowd.Cylinders(i, crowd.PositionAt(i, start));
     PeopleGrid::Bound& b = bounds[i];
@@ -74,7 +74,7 @@ LidarScan SimulateScan(const World& world, const Trajectory& trajectory, const L
     const double column_time = c * column_s;
     const double people_time = start + column_time;
     // People move < 0.1 mm during one column: one snapshot per column.
-    const std::vector<Cylinder> people = exhaustive_people ? crowd.At(people_time) : std::vector<Cylinder>();
+    const std::vector<Cylinder> people = reference_raycast ? crowd.At(people_time) : std::vector<Cylinder>();
     const auto cylinders_of = [&](int k) {
       if (cylinders_column[k] != c) {
         cylinders[k] = crowd.Cylinders(k, crowd.PositionAt(k, people_time));
@@ -88,7 +88,7 @@ LidarScan SimulateScan(const World& world, const Trajectory& trajectory, const L
       const Eigen::Vector3d d_lidar = LaserDirection(lidar, r, c);
       const Eigen::Vector3d d_world = T_world_lidar.q * d_lidar;
       Hit hit;
-      if (exhaustive_people ? !world.Cast(T_world_lidar.t, d_world, people, &hit)
+      if (reference_raycast ? !world.Cast(T_world_lidar.t, d_world, people, &hit)
                             : !world.CastNear(T_world_lidar.t, d_world, grid, cylinders_of, &candidates, &hit))
         continue;
       const double range = hit.t + noise(rng);

@@ -47,10 +47,11 @@ struct LidarScan {
 // Unit direction of a laser in the sensor frame (x forward, z up, azimuth counter-clockwise).
 Eigen::Vector3d LaserDirection(const LidarOptions& lidar, int ring, int column);
 
-// `exhaustive_people` tests every person on every ray, as the grid-free
-// reference that the default (people near each ray only) equals bit for bit.
+// `reference_raycast` casts every ray with World::Cast (QuadBvh, every
+// person): the slow reference that the default (World::CastNear) equals bit
+// for bit.
 LidarScan SimulateScan(const World& world, const Trajectory& trajectory, const LidarOptions& lidar,
-                       double start, uint64_t seed, bool exhaustive_people = false);
+                       double start, uint64_t seed, bool reference_raycast = false);
 
 }  // namespace locforge::sim
 

@@ -187,15 +187,18 @@ bool World::Cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
 
 void World::NearestQuad(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, Hit* hit) const {
   // A ray with a zero direction component can meet a box face edge-on, where
-  // the slab test's 0 x inf is a NaN: such rays and ties take QuadBvh's path.
-  if (d.x() != 0 && d.y() != 0 && d.z() != 0) {
-    const SahBvh::Nearest nearest = sah_.Intersect(o, d, t_min, hit->t);
-    if (!nearest.tie) {
-      if (nearest.quad < 0) return;
-      if (IntersectQuad(quads_[nearest.quad], o, d, t_min, hit)) {
-        hit->quad = nearest.quad;
-        return;
-      }
+  // the slab test's 0 x inf is a NaN: such rays take QuadBvh's path too.
+  const bool regular = std::abs(d.x()) > 1e-300 && std::abs(d.y()) > 1e-300 && std::abs(d.z()) > 1e-300;
+  ReportQuad(regular ? sah_.Intersect(o, d, t_min, hit->t) : NearestQuadSearch(), regular, o, d, t_min, hit);
+}
+
+void World::ReportQuad(const NearestQuadSearch& search, bool complete, const Eigen::Vector3d& o,
+                       const Eigen::Vector3d& d, double t_min, Hit* hit) const {
+  if (complete && !search.tie()) {
+    if (search.quad < 0) return;
+    if (IntersectQuad(quads_[search.quad], o, d, t_min, hit)) {
+      hit->quad = search.quad;
+      return;
     }
   }
   bvh_.Intersect(o, d, t_min, hit);

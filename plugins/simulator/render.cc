@@ -1,5 +1,7 @@
 #include "render.h"
 
+#include "screen_quads.h"
+
 #include <algorithm>
 #include <cmath>
 #include <utility>
@@ -23,6 +25,7 @@ float PixelNoise(uint64_t seed, uint64_t index) {
   return (sum - 2.f) * 1.7320508f;
 }
 
+constexpr double kMinDistance = 1e-6;  // World::Cast's t_min
 const Eigen::Vector3d kKeyLight = Eigen::Vector3d(0.3, 0.5, 0.81).normalized();
 
 // The people whose bounding sphere intersects the camera's view cone: most of
@@ -68,14 +71,27 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
   }
   if (row_end < 0 || row_end > h) row_end = h;
   const std::vector<Cylinder> visible = VisiblePeople(people, camera, T_world_camera);
-  std::vector<PeopleGrid::Bound> bounds;
-  if (!o.exhaustive_people)
-    for (const Cylinder& c : visible) bounds.push_back({c.center, c.radius, c.z0, c.z1});
-  const PeopleGrid grid(bounds);
-  const auto cylinder_of = [&](int k) { return std::make_pair(&visible[k], &visible[k] + 1); };
-  std::vector<int> candidates;
   const Eigen::Matrix3d R = T_world_camera.R();
   const Eigen::Vector3d origin = T_world_camera.t;
+  // The fast path: the quads each tile of pixels may see, the people near each ray.
+  std::vector<PeopleGrid::Bound> bounds;
+  if (!o.reference_raycast)
+    for (const Cylinder& c : visible) bounds.push_back({c.center, c.radius, c.z0, c.z1});
+  const PeopleGrid grid(bounds);
+  static const std::vector<Quad> kNoQuads;
+  const ScreenQuads screen(o.reference_raycast ? kNoQuads : world.quads(), camera, T_world_camera, row_begin,
+                           row_end);
+  const auto cylinder_of = [&](int k) { return std::make_pair(&visible[k], &visible[k] + 1); };
+  std::vector<int> candidates;
+  const auto cast = [&](int x, int y, const Eigen::Vector3d& d, Hit* hit) {
+    if (o.reference_raycast) return world.Cast(origin, d, visible, hit);
+    // Rays with a zero direction component take QuadBvh's path (World::NearestQuad).
+    const bool regular = std::abs(d.x()) > 1e-300 && std::abs(d.y()) > 1e-300 && std::abs(d.z()) > 1e-300;
+    world.ReportQuad(regular ? screen.Nearest(x, y, origin, d, kMinDistance) : NearestQuadSearch(), regular,
+                     origin, d, kMinDistance, hit);
+    world.NearPeople(origin, d, grid, cylinder_of, &candidates, hit, kMinDistance);
+    return hit->hit();
+  };
   const double pixel_angle = 1.0 / camera.fx;
   const float scale = static_cast<float>(o.exposure * o.gain);
   for (int y = row_begin; y < row_end; ++y)
@@ -83,8 +99,7 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
       const Eigen::Vector3d d = (R * camera.Ray(x + 0.5, y + 0.5)).normalized();
       Hit hit;
       Eigen::Vector3f color = Eigen::Vector3f::Zero();
-      if (o.exhaustive_people ? world.Cast(origin, d, visible, &hit)
-                              : world.CastNear(origin, d, grid, cylinder_of, &candidates, &hit)) {
+      if (cast(x, y, d, &hit)) {
         const double cos_view = std::max(0.25, std::abs(hit.normal.dot(d)));
         color = world.Albedo(hit, hit.t * pixel_angle / cos_view);
         if (o.shading) {

@@ -128,20 +128,25 @@ int SahBvh::Build(int first, int count, int depth, const std::vector<Box>& boxes
   Box left_box, right_box;
   const int left = Build(first, mid - first, depth + 1, boxes, centroids, &left_box);
   const int right = Build(mid, first + count - mid, depth + 1, boxes, centroids, &right_box);
-  nodes_[index].box[0] = left_box;
-  nodes_[index].box[1] = right_box;
+  for (int axis = 0; axis < 3; ++axis) {
+    nodes_[index].bounds[axis][0][0] = left_box.lo[axis];
+    nodes_[index].bounds[axis][1][0] = left_box.hi[axis];
+    nodes_[index].bounds[axis][0][1] = right_box.lo[axis];
+    nodes_[index].bounds[axis][1][1] = right_box.hi[axis];
+  }
   nodes_[index].child[0] = left;
   nodes_[index].child[1] = right;
   return index;
 }
 
-SahBvh::Nearest SahBvh::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
-                                  double t_max) const {
-  Nearest best;
+NearestQuadSearch SahBvh::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
+                                    double t_max) const {
+  NearestQuadSearch best;
   best.t = t_max;
   if (quads_.empty()) return best;
   const Eigen::Vector3d inv_d = d.cwiseInverse();
-  double tie_t = -kInf;  // distance of the last quad hit at exactly the best distance then
+  // Per axis, the bound the ray leaves a box through: hi (1) when d >= 0.
+  const int far[3] = {d.x() >= 0, d.y() >= 0, d.z() >= 0};
   struct Pending {
     int code;      // node, or -1 - leaf
     double entry;  // where the ray enters its box
@@ -157,24 +162,23 @@ SahBvh::Nearest SahBvh::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3
     if (!(p.entry < best.t)) continue;
     if (p.code < 0) {
       const Leaf& leaf = leaves_[-1 - p.code];
-      for (int i = leaf.first; i < leaf.first + leaf.count; ++i) {
-        const Quad& q = quads_[order_[i]];
-        double denom, t, a, b, uu, vv;
-        if (!CrossQuadPlane(q, o, d, &denom, &t)) continue;
-        if (t <= t_min || t > best.t) continue;
-        if (!InsideQuad(q, o, d, t, &a, &b, &uu, &vv)) continue;
-        if (t == best.t) {
-          tie_t = t;
-        } else {
-          best.t = t;
-          best.quad = order_[i];
-        }
-      }
+      for (int i = leaf.first; i < leaf.first + leaf.count; ++i)
+        best.Test(quads_[order_[i]], order_[i], o, d, t_min);
       continue;
     }
     const Node& n = nodes_[p.code];
-    const double t0 = BoxEntry(n.box[0].lo, n.box[0].hi, o, inv_d, best.t);
-    const double t1 = BoxEntry(n.box[1].lo, n.box[1].hi, o, inv_d, best.t);
+    double entry[2], exit[2];
+    for (int c = 0; c < 2; ++c) {
+      entry[c] = 0;
+      exit[c] = best.t;
+    }
+    for (int a = 0; a < 3; ++a)
+      for (int c = 0; c < 2; ++c) {
+        entry[c] = std::max(entry[c], (n.bounds[a][far[a] ^ 1][c] - o[a]) * inv_d[a]);
+        exit[c] = std::min(exit[c], (n.bounds[a][far[a]][c] - o[a]) * inv_d[a]);
+      }
+    const double t0 = entry[0] <= exit[0] ? entry[0] : kInf;
+    const double t1 = entry[1] <= exit[1] ? entry[1] : kInf;
     // Nearer child on top of the stack.
     if (t0 < t1) {
       if (t1 < best.t) stack[top++] = {n.child[1], t1};
@@ -184,7 +188,6 @@ SahBvh::Nearest SahBvh::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3
       if (t1 < best.t) stack[top++] = {n.child[1], t1};
     }
   }
-  best.tie = best.quad >= 0 && tie_t == best.t;
   return best;
 }
 

@@ -17,19 +17,16 @@
 
 namespace locforge::sim {
 
+struct NearestQuadSearch;  // raycast.h
+
 class SahBvh {
  public:
   // Keeps a reference to `quads`, which must outlive the BVH.
   explicit SahBvh(const std::vector<Quad>& quads);
 
-  struct Nearest {
-    double t = std::numeric_limits<double>::infinity();
-    int quad = -1;     // index in quads, or -1
-    bool tie = false;  // another quad is hit at exactly t
-  };
-  // The nearest quad along o + t d with t in (t_min, t_max), tested as
-  // IntersectQuad does.
-  Nearest Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, double t_max) const;
+  // The nearest quad along o + t d with t in (t_min, t_max), and its ties.
+  NearestQuadSearch Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
+                              double t_max) const;
 
   size_t num_nodes() const { return nodes_.size(); }
   int depth() const { return depth_; }
@@ -44,9 +41,10 @@ class SahBvh {
     }
     double Area() const;
   };
-  // Children: >= 0 an inner node, < 0 the leaf -1 - child.
+  // Both children's boxes, bounds[axis][0 = lo, 1 = hi][child]; children:
+  // >= 0 an inner node, < 0 the leaf -1 - child.
   struct Node {
-    Box box[2];
+    double bounds[3][2][2];
     int child[2] = {-1, -1};
   };
   struct Leaf {
