@@ -10,10 +10,26 @@ namespace locforge::host {
 
 namespace {
 
-std::string Shown(std::string canonical) {
-  for (char& c : canonical)
+// A canonical value as a person writes it: lists with commas, components as
+// `kind/name {name: value, ...}`.
+std::string Shown(const std::string& canonical, LfParamType type) {
+  if (type == LF_PARAM_COMPONENT) {
+    ComponentSpec spec;
+    if (!ParseComponent(canonical, &spec)) return canonical;
+    std::string out = spec.stage;
+    for (size_t i = 0; i < spec.params.size(); ++i)
+      out += (i ? ", " : " {") + spec.params[i].first + ": " +
+             Shown(spec.params[i].second, LF_PARAM_STRING_LIST);
+    return spec.params.empty() ? out : out + "}";
+  }
+  std::string out = canonical;
+  for (char& c : out)
     if (c == LF_LIST_SEPARATOR) c = ',';
-  return canonical;
+  return out;
+}
+
+std::string VersionText(const runtime::StageEntry& s) {
+  return s.version + (s.own_version ? " (stage)" : " (plugin)");
 }
 
 std::string PortFlags(uint32_t flags) {
@@ -29,7 +45,7 @@ std::string DescribeParam(const ParamDecl& d) {
   if (d.required())
     s << "  required";
   else
-    s << "  default: " << (d.default_value.empty() ? "\"\"" : Shown(d.default_value));
+    s << "  default: " << (d.default_value.empty() ? "\"\"" : Shown(d.default_value, d.type));
   if (d.has_min || d.has_max) {
     s << "  range: [" << (d.has_min ? FormatDouble(d.min_value) : "-inf") << ", "
       << (d.has_max ? FormatDouble(d.max_value) : "+inf") << "]";
@@ -38,6 +54,8 @@ std::string DescribeParam(const ParamDecl& d) {
     s << "  choices: ";
     for (size_t i = 0; i < d.choices.size(); ++i) s << (i ? "|" : "") << d.choices[i];
   }
+  if (d.type == LF_PARAM_COMPONENT)
+    s << "  implements: " << (d.component_interface.empty() ? "any" : d.component_interface);
   if (d.flags & LF_PARAM_NO_CACHE_KEY) s << "  (not in cache key)";
   s << "\n        " << d.doc << "\n";
   return s.str();
@@ -68,6 +86,10 @@ int Describe(const runtime::Registry& registry, const std::string& id) {
   out << stage->id << "\n    " << (info.doc ? info.doc : "") << "\n";
   out << "plugin: " << (plugin.name ? plugin.name : "?") << " "
       << (plugin.version ? plugin.version : "?") << " (" << stage->plugin->file.string() << ")\n";
+  out << "version: " << stage->version
+      << (stage->own_version ? " (the stage's own; keys its cached results)"
+                             : " (the plugin's; keys its cached results)")
+      << "\n";
   std::string mode = !stage->runnable()  ? "component only (not a graph node)"
                      : stage->per_item() ? "per-item (threaded, sharded, resumable)"
                                          : "whole (runs once per node)";
@@ -81,17 +103,41 @@ int Describe(const runtime::Registry& registry, const std::string& id) {
   DescribePorts("outputs", stage->outputs, false, out);
   out << "component interface: " << (info.component_interface ? info.component_interface : "none")
       << "\n";
+  if (info.component_interface) {
+    // Where it can be chosen: the component parameters of other stages.
+    std::vector<std::string> users;
+    for (const auto* s : registry.Stages())
+      for (const auto& d : s->params)
+        if (d.type == LF_PARAM_COMPONENT &&
+            (d.component_interface.empty() || d.component_interface == info.component_interface))
+          users.push_back(s->id + "." + d.name);
+    if (!users.empty()) {
+      out << "chosen by:";
+      for (const auto& u : users) out << " " << u;
+      out << "\n";
+    }
+  }
   return 0;
 }
 
 int List(const runtime::Registry& registry) {
-  size_t width = 0;
-  for (const auto* s : registry.Stages()) width = std::max(width, s->id.size());
+  size_t width = 0, version_width = 0, plugin_width = 0;
+  for (const auto* s : registry.Stages()) {
+    width = std::max(width, s->id.size());
+    version_width = std::max(version_width, VersionText(*s).size());
+    const LfPluginInfo& plugin = *s->plugin->info;
+    plugin_width = std::max(plugin_width, std::string(plugin.name ? plugin.name : "?").size() + 1 +
+                                              std::string(plugin.version ? plugin.version : "?").size());
+  }
   for (const auto* s : registry.Stages()) {
     const LfPluginInfo& plugin = *s->plugin->info;
-    std::cout << s->id << std::string(width - s->id.size() + 2, ' ')
-              << (plugin.name ? plugin.name : "?") << " " << (plugin.version ? plugin.version : "?")
-              << "  " << s->plugin->file.string() << "\n";
+    const std::string version = VersionText(*s);
+    const std::string plugin_text = std::string(plugin.name ? plugin.name : "?") + " " +
+                                    (plugin.version ? plugin.version : "?");
+    std::cout << s->id << std::string(width - s->id.size() + 2, ' ') << version
+              << std::string(version_width - version.size() + 2, ' ') << plugin_text
+              << std::string(plugin_width - plugin_text.size() + 2, ' ') << s->plugin->file.string()
+              << "\n";
   }
   if (registry.Stages().empty()) std::cout << "(no stages: no plugin found in the search path)\n";
   for (const auto& d : registry.duplicates()) std::cerr << "error: duplicate stage: " << d << "\n";

@@ -1,11 +1,8 @@
 #include "executor.h"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <optional>
 #include <set>
 
@@ -21,37 +18,14 @@ std::string Label(const std::string& variant, const std::string& node) {
 
 bool IsCancelled(const std::atomic<bool>* cancel) { return cancel && cancel->load(); }
 
-// Partial folders of whole-stage runs are private to one process; once the
-// node lock is held, any left over is stale (its process died).
-void RemoveStalePartials(const fs::path& dir) {
-  const std::string prefix = dir.filename().string() + ".partial-";
-  std::error_code ec;
-  for (fs::directory_iterator it(dir.parent_path(), ec), end; !ec && it != end; it.increment(ec))
-    if (it->path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(it->path(), ec);
-}
-
-fs::path Sibling(const fs::path& dir, const std::string& suffix) {
-  fs::path p = dir;
-  p += suffix;
-  return p;
-}
-
-// Lock files live in WORKSPACE/locks/, out of the way of the cache listing.
-fs::path LockFile(const fs::path& dir, const std::string& suffix) {
-  const fs::path locks = dir.parent_path().parent_path() / "locks";
-  fs::create_directories(locks);
-  return locks / (dir.filename().string() + suffix);
-}
-
-// Items of a complete node, from its manifest (0 when not per-item).
+// Items of a complete node, from its manifest (0 when not per-item, or when
+// the manifest cannot be read: the count is informative only).
 uint64_t ManifestItems(const fs::path& dir) {
-  std::ifstream in(dir / kCompleteMarker);
-  std::string line;
-  while (std::getline(in, line)) {
-    const size_t pos = line.find("\"items\": ");
-    if (pos != std::string::npos) return std::strtoull(line.c_str() + pos + 9, nullptr, 10);
+  try {
+    return ReadManifest(dir).items;
+  } catch (const std::exception&) {
+    return 0;
   }
-  return 0;
 }
 
 NodeReport NewReport(const std::string& variant, const ResolvedNode& node) {
@@ -143,21 +117,20 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
   try {
     if (per_item && options_.shard_count > 1) {
       // Shards of one node run side by side; an unsharded run waits for them.
-      node_lock.emplace(LockFile(dir, ".lock"), FileLock::kShared);
-      shard_lock.emplace(LockFile(dir, ".shard-" + std::to_string(options_.shard_index) + "-of-" +
-                                           std::to_string(options_.shard_count) + ".lock"),
+      node_lock.emplace(workspace_.LockFile(dir, ".lock"), FileLock::kShared);
+      shard_lock.emplace(workspace_.LockFile(dir, ".shard-" + std::to_string(options_.shard_index) +
+                                                      "-of-" + std::to_string(options_.shard_count) +
+                                                      ".lock"),
                          FileLock::kExclusive);
     } else {
-      node_lock.emplace(LockFile(dir, ".lock"), FileLock::kExclusive);
+      node_lock.emplace(workspace_.LockFile(dir, ".lock"), FileLock::kExclusive);
     }
     if (!options_.force && Workspace::IsComplete(dir)) return {"cached", dir};  // done meanwhile
+    partial = Workspace::PartialDir(dir, per_item);
     if (per_item) {
-      // Persistent, so a killed run resumes from the runtime's journals.
-      partial = Sibling(dir, ".partial");
-      if (options_.force) fs::remove_all(partial);
+      if (options_.force) fs::remove_all(partial);  // journals of an earlier run
     } else {
-      RemoveStalePartials(dir);
-      partial = Sibling(dir, ".partial-" + std::to_string(::getpid()));
+      Workspace::RemoveStalePartials(dir);
     }
   } catch (const std::exception& e) {
     result->failed = true;
@@ -186,7 +159,7 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
   // error from the folder moving away) is moot.
   auto published_by_another_shard = [&] {
     if (!sharded) return false;
-    FileLock publish(LockFile(dir, ".publish.lock"), FileLock::kExclusive);
+    FileLock publish(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
     return Workspace::IsComplete(dir);
   };
   std::string status;
@@ -198,7 +171,7 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::optional<FileLock> publish;
     if (sharded) {
-      publish.emplace(LockFile(dir, ".publish.lock"), FileLock::kExclusive);
+      publish.emplace(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
       if (Workspace::IsComplete(dir)) {
         reporter_.NodeFinished(label, "ran (published by another shard)", r.items_total,
                                report->seconds);
@@ -242,31 +215,19 @@ std::string Executor::Manifest(const ResolvedNode& node, const std::string& key,
                                const std::vector<runtime::InputArtifact>& inputs, uint64_t items,
                                double seconds) const {
   const LfPluginInfo* plugin = node.stage->plugin->info;
-  std::string j = "{\n";
-  j += "  \"stage\": " + JsonString(node.stage->id) + ",\n";
-  j += "  \"plugin\": " + JsonString(plugin->name ? plugin->name : "") + ",\n";
-  j += "  \"plugin_version\": " + JsonString(plugin->version ? plugin->version : "") + ",\n";
-  j += "  \"plugin_file\": " + JsonString(node.stage->plugin->file.string()) + ",\n";
-  j += "  \"key\": " + JsonString(key) + ",\n";
-  j += "  \"params\": {";
-  bool first = true;
-  for (const auto& [name, value] : node.params) {
-    j += std::string(first ? "\n" : ",\n") + "    " + JsonString(name) + ": " + JsonString(value);
-    first = false;
-  }
-  j += "\n  },\n  \"inputs\": [";
-  first = true;
-  for (const auto& in : inputs) {
-    j += std::string(first ? "\n" : ",\n") + "    {\"port\": " + JsonString(in.port) +
-         ", \"type\": " + JsonString(in.artifact_type) +
-         ", \"path\": " + JsonString(in.path.string()) + "}";
-    first = false;
-  }
-  char secs[32];
-  std::snprintf(secs, sizeof(secs), "%.3f", seconds);
-  j += "\n  ],\n  \"finished\": " + JsonString(UtcNow()) +
-       ",\n  \"items\": " + std::to_string(items) + ",\n  \"seconds\": " + secs + "\n}\n";
-  return j;
+  host::Manifest m;
+  m.stage = node.stage->id;
+  m.plugin = plugin->name ? plugin->name : "";
+  m.plugin_version = plugin->version ? plugin->version : "";
+  m.stage_version = node.stage->version;
+  m.plugin_file = node.stage->plugin->file.string();
+  m.key = key;
+  m.params = node.params;
+  for (const auto& in : inputs) m.inputs.push_back({in.port, in.artifact_type, in.path.string()});
+  m.finished = UtcNow();
+  m.items = items;
+  m.seconds = seconds;
+  return FormatManifest(m);
 }
 
 std::string FormatTable(const ExecResult& result, bool with_variants) {

@@ -16,6 +16,17 @@ std::string SourceLocation::ToString() const {
   return file + ":" + std::to_string(line) + ":" + std::to_string(column);
 }
 
+std::string Hint(const std::string& word, const std::vector<std::string>& candidates) {
+  const std::string best = DidYouMean(word, candidates);
+  return best.empty() ? "" : " (did you mean '" + best + "'?)";
+}
+
+std::string JoinNames(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out.empty() ? "none" : out;
+}
+
 bool ParseOverride(const std::string& text, Override* out) {
   const size_t eq = text.find('=');
   if (eq == std::string::npos || eq == 0) return false;
@@ -32,17 +43,6 @@ bool IsIdentifier(const std::string& s, bool allow_dash) {
     if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || (allow_dash && c == '-')))
       return false;
   return true;
-}
-
-std::string Hint(const std::string& word, const std::vector<std::string>& candidates) {
-  const std::string best = DidYouMean(word, candidates);
-  return best.empty() ? "" : " (did you mean '" + best + "'?)";
-}
-
-std::string JoinNames(const std::vector<std::string>& names) {
-  std::string out;
-  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
-  return out.empty() ? "none" : out;
 }
 
 // `${name}` is not a valid plain scalar inside a YAML flow mapping
@@ -75,6 +75,53 @@ std::string Unmask(const std::string& scalar) {
     out[end] = '}';
   }
   return out;
+}
+
+// A YAML value as a Value: a scalar, a list of scalars, or a component
+// {stage: KIND/NAME, params: {name: scalar or list or component, ...}}.
+bool ReadYamlValue(const YAML::Node& node, const std::function<SourceLocation(const YAML::Mark&)>& at,
+                   const std::string& what, Value* out, Diagnostics* errors) {
+  auto fail = [&](const YAML::Node& n, const std::string& message) {
+    errors->push_back({at(n.Mark()), what + ": " + message});
+    return false;
+  };
+  *out = Value{};
+  if (node.IsScalar()) {
+    out->items.push_back(Unmask(node.Scalar()));
+    return true;
+  }
+  if (node.IsSequence()) {
+    out->is_list = true;
+    for (const auto& item : node) {
+      if (!item.IsScalar()) return fail(item, "expected a scalar list element");
+      out->items.push_back(Unmask(item.Scalar()));
+    }
+    return true;
+  }
+  if (!node.IsMap())
+    return fail(node, "expected a scalar, a list of scalars or a component {stage: KIND/NAME, params: {...}}");
+  out->is_component = true;
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const std::string key = it->first.IsScalar() ? it->first.Scalar() : "";
+    if (key != "stage" && key != "params")
+      return fail(it->first, "unknown key '" + key + "' of a component; expected stage and params");
+  }
+  const YAML::Node stage = node["stage"];
+  if (!stage || !stage.IsScalar()) return fail(node, "a component needs 'stage: KIND/NAME'");
+  out->items.push_back(Unmask(stage.Scalar()));
+  const YAML::Node params = node["params"];
+  if (!params || params.IsNull()) return true;
+  if (!params.IsMap()) return fail(params, "a component's 'params' must be a mapping");
+  for (auto it = params.begin(); it != params.end(); ++it) {
+    ComponentParam p;
+    p.name = it->first.Scalar();
+    p.key_where = at(it->first.Mark());
+    p.value_where = at(it->second.Mark());
+    if (!ReadYamlValue(it->second, at, what + ": parameter '" + p.name + "'", &p.value, errors))
+      return false;
+    out->params.push_back(std::move(p));
+  }
+  return true;
 }
 
 // A value as written, before substitution, with its provenance.
@@ -148,23 +195,8 @@ void GraphParser::CheckDuplicateKeys(const YAML::Node& node) {
 bool GraphParser::ReadRaw(const YAML::Node& node, const std::string& what, RawValue* out) {
   out->where = At(node);
   out->value = Value{};
-  if (node.IsScalar()) {
-    out->value.items.push_back(Unmask(node.Scalar()));
-    return true;
-  }
-  if (node.IsSequence()) {
-    out->value.is_list = true;
-    for (const auto& item : node) {
-      if (!item.IsScalar()) {
-        Fail(At(item), what + ": expected a scalar list element");
-        return false;
-      }
-      out->value.items.push_back(Unmask(item.Scalar()));
-    }
-    return true;
-  }
-  Fail(out->where, what + ": expected a scalar or a list of scalars");
-  return false;
+  return ReadYamlValue(node, [this](const YAML::Mark& m) { return At(m); }, what, &out->value,
+                       errors_);
 }
 
 void GraphParser::ReadVars(const YAML::Node& node) {
@@ -203,14 +235,21 @@ void GraphParser::ReadMatrix(const YAML::Node& node) {
   }
 }
 
-Value ParseCommandLineValue(const std::string& text) {
+// A --set value: a YAML list `[a, b]` or component `{stage: ..., params: {...}}`
+// when it starts so, else the text itself.
+Value ParseCommandLineValue(const std::string& text, const SourceLocation& where,
+                            Diagnostics* errors) {
   Value v;
-  if (!text.empty() && text.front() == '[') {
+  if (!text.empty() && (text.front() == '[' || text.front() == '{')) {
     try {
       const YAML::Node node = YAML::Load(text);
       if (node.IsSequence()) {
         v.is_list = true;
         for (const auto& item : node) v.items.push_back(item.IsScalar() ? item.Scalar() : "");
+        return v;
+      }
+      if (node.IsMap()) {
+        ReadYamlValue(node, [&where](const YAML::Mark&) { return where; }, "value", &v, errors);
         return v;
       }
     } catch (const YAML::Exception&) {
@@ -228,7 +267,7 @@ void GraphParser::ApplyVarOverrides(const std::vector<Override>& sets) {
       continue;
     }
     if (vars_.count(set.key)) {
-      vars_[set.key] = RawValue{ParseCommandLineValue(set.value), where, true};
+      vars_[set.key] = RawValue{ParseCommandLineValue(set.value, where, errors_), where, true};
       continue;
     }
     auto m = std::find_if(matrix_.begin(), matrix_.end(),
@@ -326,9 +365,9 @@ bool GraphParser::SubstituteScalar(const std::string& s, const SourceLocation& w
     result += s.substr(pos, start - pos);
     Value v;
     if (!LookupVar(s.substr(start + 2, end - start - 2), where, &v, from_cli)) return false;
-    if (v.is_list) {
-      Fail(where, "variable '" + s.substr(start + 2, end - start - 2) +
-                      "' is a list; expected a scalar inside '" + s + "'");
+    if (v.is_list || v.is_component) {
+      Fail(where, "variable '" + s.substr(start + 2, end - start - 2) + "' is a " +
+                      (v.is_list ? "list" : "component") + "; expected a scalar inside '" + s + "'");
       return false;
     }
     result += v.scalar();
@@ -340,12 +379,24 @@ bool GraphParser::SubstituteScalar(const std::string& s, const SourceLocation& w
 }
 
 Value GraphParser::Substitute(const Value& raw, const SourceLocation& where, bool* from_cli) {
+  if (raw.is_component) {
+    Value out = raw;
+    out.items.clear();
+    Value stage;
+    if (SubstituteScalar(raw.scalar(), where, &stage, from_cli)) out.items.push_back(stage.scalar());
+    for (auto& p : out.params) p.value = Substitute(p.value, p.value_where, from_cli);
+    return out;
+  }
   Value out;
   out.is_list = raw.is_list;
   for (const auto& item : raw.items) {
     Value v;
     if (!SubstituteScalar(item, where, &v, from_cli)) continue;
-    if (v.is_list && !raw.is_list) return v;  // "${list}" as the whole value
+    if ((v.is_list || v.is_component) && !raw.is_list) return v;  // "${var}" as the whole value
+    if (v.is_component) {
+      Fail(where, "a component variable cannot be a list element");
+      continue;
+    }
     out.items.insert(out.items.end(), v.items.begin(), v.items.end());
   }
   return out;
@@ -410,6 +461,10 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
           if (!ReadRaw(in->second, "input '" + in->first.Scalar() + "'", &raw)) continue;
           InputSpec spec;
           spec.where = At(in->first);
+          if (raw.value.is_component) {
+            Fail(raw.where, "input '" + in->first.Scalar() + "': expected NODE.PORT or a list of them");
+            continue;
+          }
           bool cli = false;
           const size_t before = errors_->size();
           const Value v = Substitute(raw.value, raw.where, &cli);
@@ -450,7 +505,7 @@ void GraphParser::ApplyNodeOverrides(GraphVariant* variant) {
     pv.key_where = pv.value_where = where;
     bool cli = true;
     const size_t before = errors_->size();
-    pv.value = Substitute(ParseCommandLineValue(set.value), where, &cli);
+    pv.value = Substitute(ParseCommandLineValue(set.value, where, errors_), where, &cli);
     pv.broken = errors_->size() != before;
     pv.base_dir = cwd_;
     node->params[param] = pv;

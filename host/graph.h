@@ -40,11 +40,22 @@ struct Diagnostic {
 };
 using Diagnostics = std::vector<Diagnostic>;
 
-// A value after substitution: a scalar, or a list when written as a YAML list.
+struct ComponentParam;
+
+// A value after substitution: a scalar, a list when written as a YAML list,
+// or a component written as a mapping {stage: KIND/NAME, params: {...}}.
 struct Value {
-  std::vector<std::string> items;  // one item for a scalar
+  std::vector<std::string> items;  // one item for a scalar; the stage id of a component
   bool is_list = false;
+  bool is_component = false;
+  std::vector<ComponentParam> params;  // a component's parameters, as written
   std::string scalar() const { return items.empty() ? "" : items.front(); }
+};
+
+struct ComponentParam {
+  std::string name;
+  Value value;
+  SourceLocation key_where, value_where;
 };
 
 struct ParamValue {
@@ -98,6 +109,11 @@ struct Override {
   std::string key;
   std::string value;
 };
+// " (did you mean 'x'?)" naming the closest candidate, or "" when none is close.
+std::string Hint(const std::string& word, const std::vector<std::string>& candidates);
+// "a, b, c", or "none" when empty.
+std::string JoinNames(const std::vector<std::string>& names);
+
 // Parses "key=value"; returns false when there is no '='.
 bool ParseOverride(const std::string& text, Override* out);
 
@@ -124,6 +140,9 @@ struct ResolvedNode {
   std::string name;
   const runtime::StageEntry* stage = nullptr;
   std::map<std::string, std::string> params;  // canonical, defaults filled, PATHs absolute
+  // Component parameters: the chosen stage and its version ("kind/name 1.0.0"),
+  // part of the cache key as the node's results depend on them.
+  std::map<std::string, std::string> components;
   std::vector<ResolvedInput> inputs;          // sorted by port name
 };
 

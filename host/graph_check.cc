@@ -18,17 +18,6 @@ StageLookup LookupOf(const runtime::Registry& registry) {
 
 namespace {
 
-std::string Hint(const std::string& word, const std::vector<std::string>& candidates) {
-  const std::string best = DidYouMean(word, candidates);
-  return best.empty() ? "" : " (did you mean '" + best + "'?)";
-}
-
-std::string JoinNames(const std::vector<std::string>& names) {
-  std::string out;
-  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
-  return out.empty() ? "none" : out;
-}
-
 std::vector<std::string> PortNames(const std::vector<runtime::PortDecl>& ports) {
   std::vector<std::string> out;
   for (const auto& p : ports) out.push_back(p.name);
@@ -64,12 +53,23 @@ bool IsListType(LfParamType t) {
   return t == LF_PARAM_INT_LIST || t == LF_PARAM_DOUBLE_LIST || t == LF_PARAM_STRING_LIST;
 }
 
-// Checks one given value against its declaration; returns its canonical
-// string, or "" with a diagnostic.
+// Checks one given value against its declaration (a component's against the
+// chosen stage, by `check_component`); returns its canonical string, or
+// false with a diagnostic.
+using ComponentCheck = std::function<bool(const std::string& what, const ParamDecl& decl,
+                                          const ParamValue& given, std::string* canonical)>;
 bool CanonicalParam(const std::string& node, const ParamDecl& decl, const ParamValue& given,
-                    std::string* canonical, Diagnostics* errors) {
+                    const ComponentCheck& check_component, std::string* canonical,
+                    Diagnostics* errors) {
   const std::string what =
       "node '" + node + "': parameter '" + decl.name + "' (" + ParamTypeName(decl.type) + ")";
+  if (decl.type == LF_PARAM_COMPONENT) return check_component(what, decl, given, canonical);
+  if (given.value.is_component) {
+    errors->push_back({given.value_where, what + ": expected a " +
+                                              (IsListType(decl.type) ? "list" : "single value") +
+                                              ", got a component mapping"});
+    return false;
+  }
   if (given.value.is_list && !IsListType(decl.type)) {
     errors->push_back({given.value_where, what + ": expected a single value, got a list"});
     return false;
@@ -120,7 +120,12 @@ class VariantChecker {
   }
   const runtime::StageEntry* CheckStage(const NodeSpec& node);
   void CheckParams(const NodeSpec& node, const runtime::StageEntry& stage, ResolvedNode* out);
+  bool CheckComponent(const std::string& node, const std::string& what, const ParamDecl& decl,
+                      const ParamValue& given, std::string* canonical);
+  const runtime::StageEntry* FindComponent(const std::string& id, const ParamDecl& decl,
+                                           const SourceLocation& where, const std::string& what);
   void CheckInputs(const NodeSpec& node, const runtime::StageEntry& stage, ResolvedNode* out);
+  ComponentCheck Components(const std::string& node);
   const NodeSpec* FindNode(const std::string& name) const {
     for (const auto& n : variant_.nodes)
       if (n.name == name) return &n;
@@ -178,7 +183,7 @@ void VariantChecker::CheckParams(const NodeSpec& node, const runtime::StageEntry
       continue;
     }
     std::string canonical;
-    if (CanonicalParam(node.name, *decl, value, &canonical, errors_))
+    if (CanonicalParam(node.name, *decl, value, Components(node.name), &canonical, errors_))
       given.emplace_back(name, canonical);
   }
   for (const auto& d : stage.params)
@@ -191,7 +196,105 @@ void VariantChecker::CheckParams(const NodeSpec& node, const runtime::StageEntry
   } catch (const std::exception& e) {
     Fail(node.stage_where,
          "node '" + node.name + "': parameters refused by stage '" + stage.id + "': " + e.what());
+    return;
   }
+  // Every component parameter, given or default: its stage and version key the results.
+  for (const auto& d : stage.params) {
+    if (d.type != LF_PARAM_COMPONENT) continue;
+    ComponentSpec spec;
+    if (!ParseComponent(out->params[d.name], &spec)) continue;  // refused above
+    auto given_value = node.params.find(d.name);
+    const SourceLocation where =
+        given_value != node.params.end() ? given_value->second.value_where : node.stage_where;
+    const std::string what = "node '" + node.name + "': parameter '" + d.name + "' (component" +
+                             (given_value == node.params.end() ? ", default" : "") + ")";
+    if (const runtime::StageEntry* c = FindComponent(spec.stage, d, where, what))
+      out->components[d.name] = c->id + " " + c->version;
+  }
+}
+
+ComponentCheck VariantChecker::Components(const std::string& node) {
+  return [this, node](const std::string& what, const ParamDecl& decl, const ParamValue& given,
+                      std::string* canonical) {
+    return CheckComponent(node, what, decl, given, canonical);
+  };
+}
+
+const runtime::StageEntry* VariantChecker::FindComponent(const std::string& id,
+                                                         const ParamDecl& decl,
+                                                         const SourceLocation& where,
+                                                         const std::string& what) {
+  std::vector<std::string> candidates;  // stages implementing the interface
+  for (const auto& [sid, s] : stages_)
+    if (s->is_component() && (decl.component_interface.empty() ||
+                              decl.component_interface == s->info->component_interface))
+      candidates.push_back(sid);
+  const std::string expected =
+      "; expected a component" +
+      (decl.component_interface.empty() ? "" : " implementing " + decl.component_interface) +
+      ": " + JoinNames(candidates);
+  auto it = stages_.find(id);
+  if (it == stages_.end()) {
+    Fail(where, what + ": unknown stage '" + id + "'" + Hint(id, candidates) + expected);
+    return nullptr;
+  }
+  const runtime::StageEntry* c = it->second;
+  if (!c->is_component()) {
+    Fail(where, what + ": stage '" + id + "' is not a component" + expected);
+    return nullptr;
+  }
+  if (!decl.component_interface.empty() && decl.component_interface != c->info->component_interface) {
+    Fail(where, what + ": stage '" + id + "' implements " + c->info->component_interface +
+                    ", not " + decl.component_interface + expected);
+    return nullptr;
+  }
+  return c;
+}
+
+bool VariantChecker::CheckComponent(const std::string& node, const std::string& what,
+                                    const ParamDecl& decl, const ParamValue& given,
+                                    std::string* canonical) {
+  if (given.value.is_list) {
+    Fail(given.value_where, what + ": expected KIND/NAME or {stage: KIND/NAME, params: {...}}, "
+                                   "got a list");
+    return false;
+  }
+  const std::string id = given.value.scalar();
+  const runtime::StageEntry* c = FindComponent(id, decl, given.value_where, what);
+  if (!c) return false;
+  // The component's parameters against its own declarations, then its own checks.
+  const size_t before = errors_->size();
+  std::vector<std::string> names;
+  for (const auto& d : c->params) names.push_back(d.name);
+  std::vector<std::pair<std::string, std::string>> params;
+  for (const ComponentParam& p : given.value.params) {
+    auto d = std::find_if(c->params.begin(), c->params.end(),
+                          [&](const ParamDecl& x) { return x.name == p.name; });
+    if (d == c->params.end()) {
+      Fail(p.key_where, what + ": component '" + id + "' has no parameter '" + p.name + "'" +
+                            Hint(p.name, names) + "; expected one of: " + JoinNames(names));
+      continue;
+    }
+    ParamValue inner;
+    inner.value = p.value;
+    inner.key_where = p.key_where;
+    inner.value_where = p.value_where;
+    inner.base_dir = given.base_dir;
+    std::string value;
+    if (CanonicalParam(node + "' component '" + id, *d, inner, Components(node), &value, errors_))
+      params.emplace_back(p.name, value);
+  }
+  if (errors_->size() != before) return false;
+  try {
+    (void)runtime::CheckStageParams(*c, params);
+  } catch (const std::exception& e) {
+    Fail(given.value_where, what + ": parameters refused by component '" + id + "': " + e.what());
+    return false;
+  }
+  ComponentSpec spec(id);
+  spec.params = params;
+  *canonical = FormatComponent(spec);
+  return true;
 }
 
 void VariantChecker::CheckInputs(const NodeSpec& node, const runtime::StageEntry& stage,

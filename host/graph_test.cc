@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "test_stages.h"
+#include "workspace.h"
 #include "testing.h"
 
 namespace locforge::host {
@@ -364,6 +365,75 @@ TEST(GraphCheck, SetOnUnknownNode) {
   EXPECT_NE(Check("locforge: 1\nnodes:\n  imgs: {stage: source/images}\n", {{"img.count", "3"}})
                 .find("--set img.count=3: error: unknown node 'img' (did you mean 'imgs'?)"),
             std::string::npos);
+}
+
+
+TEST(GraphCheck, ComponentParamIsCheckedAgainstTheChosenStage) {
+  std::vector<ResolvedGraph> out;
+  EXPECT_EQ(Check(R"(locforge: 1
+vars: {icp: {stage: registration/fake_icp, params: {iterations: 20}}}
+nodes:
+  a: {stage: slam/graph}
+  b: {stage: slam/graph, params: {backend: {stage: registration/fake_icp, params: {iterations: 5, mode: slow}}}}
+  c: {stage: slam/graph, params: {backend: "${icp}"}}
+  d: {stage: slam/graph, params: {backend: registration/fake_icp}}
+)",
+                  {}, &out),
+            "");
+  ASSERT_EQ(out.size(), 1u);
+  std::map<std::string, const ResolvedNode*> nodes;
+  for (const auto& n : out[0].nodes) nodes[n.name] = &n;
+  const std::string sep(1, LF_COMPONENT_SEPARATOR);
+  EXPECT_EQ(nodes.at("a")->params.at("backend"), "registration/fake_icp");
+  EXPECT_EQ(nodes.at("b")->params.at("backend"),
+            "registration/fake_icp" + sep + "iterations=5" + sep + "mode=slow");
+  EXPECT_EQ(nodes.at("c")->params.at("backend"), "registration/fake_icp" + sep + "iterations=20");
+  EXPECT_EQ(nodes.at("d")->params.at("backend"), "registration/fake_icp");
+  // The chosen stage and its version key the node's results.
+  EXPECT_EQ(nodes.at("a")->components.at("backend"), "registration/fake_icp 2.0.0");
+  EXPECT_NE(CacheKeyText(*nodes.at("a"), {}).find("component backend=registration/fake_icp 2.0.0"),
+            std::string::npos);
+  EXPECT_NE(CacheKey(*nodes.at("a"), {}), CacheKey(*nodes.at("b"), {}));
+  EXPECT_EQ(CacheKey(*nodes.at("a"), {}), CacheKey(*nodes.at("d"), {}));
+}
+
+TEST(GraphCheck, ComponentParamErrorsAreLocated) {
+  const std::string errors = Check(R"(locforge: 1
+nodes:
+  a: {stage: slam/graph, params: {backend: registration/fake_ipc}}
+  b: {stage: slam/graph, params: {backend: {stage: registration/fake_icp, params: {iteration: 5}}}}
+  c: {stage: slam/graph, params: {backend: {stage: registration/fake_icp, params: {iterations: 500}}}}
+  d: {stage: slam/graph, params: {backend: registration/other}}
+  e: {stage: slam/graph, params: {backend: {stage: registration/fake_icp, params: {mode: bad}}}}
+  f: {stage: slam/graph, params: {backend: source/images}}
+  g: {stage: slam/graph, params: {backend: {stage: registration/fake_icp, extra: 1}}}
+)");
+  for (const char* expected :
+       {"/graphs/g.yaml:3:44: error: node 'a': parameter 'backend' (component): unknown stage "
+        "'registration/fake_ipc' (did you mean 'registration/fake_icp'?); expected a component "
+        "implementing locforge.registration/1: registration/fake_icp",
+        "error: node 'b': parameter 'backend' (component): component 'registration/fake_icp' has "
+        "no parameter 'iteration' (did you mean 'iterations'?)",
+        "/graphs/g.yaml:5:96: error: node 'c' component 'registration/fake_icp': parameter "
+        "'iterations' (int): value 500 is out of range [1, 100]",
+        "node 'd': parameter 'backend' (component): stage 'registration/other' implements "
+        "locforge.other/1, not locforge.registration/1",
+        "node 'e': parameter 'backend' (component): parameters refused by component "
+        "'registration/fake_icp': ",
+        "node 'f': parameter 'backend' (component): stage 'source/images' is not a component",
+        "/graphs/g.yaml:9:75: error: parameter 'backend': unknown key 'extra' of a component; "
+        "expected stage and params"})
+    EXPECT_NE(errors.find(expected), std::string::npos) << expected << "\n---\n" << errors;
+}
+
+TEST(GraphParse, ComponentFromTheCommandLine) {
+  std::vector<ResolvedGraph> out;
+  EXPECT_EQ(Check("locforge: 1\nnodes:\n  a: {stage: slam/graph}\n",
+                  {{"a.backend", "{stage: registration/fake_icp, params: {iterations: 7}}"}}, &out),
+            "");
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].nodes[0].params.at("backend"),
+            "registration/fake_icp" + std::string(1, LF_COMPONENT_SEPARATOR) + "iterations=7");
 }
 
 }  // namespace

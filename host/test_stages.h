@@ -53,23 +53,39 @@ class FakeStages {
     Add("filter/features", LF_STAGE_RUNNABLE, {},
         {{"features", "kapture.features", LF_PORT_MULTIPLE}}, {{"features", "kapture.features"}});
     Add("registration/icp", 0, {}, {}, {});
+    // A component with an interface and parameters, and a stage choosing it.
+    ParamDecl iterations{"iterations", LF_PARAM_INT, 0, "10", "iterations"};
+    iterations.has_min = iterations.has_max = true;
+    iterations.min_value = 1;
+    iterations.max_value = 100;
+    Add("registration/fake_icp", 0, {iterations, mode}, {}, {}, LF_REGISTRATION_INTERFACE, "2.0.0");
+    Add("registration/other", 0, {}, {}, {}, "locforge.other/1");
+    ParamDecl backend{"backend", LF_PARAM_COMPONENT, 0, "registration/fake_icp", "back-end"};
+    backend.component_interface = LF_REGISTRATION_INTERFACE;
+    Add("slam/graph", LF_STAGE_RUNNABLE, {backend}, {}, {{"poses", "kapture.trajectories"}});
   }
 
   const StageLookup& lookup() const { return lookup_; }
   const runtime::StageEntry* Find(const std::string& id) const { return lookup_.at(id); }
   LfPluginInfo& plugin_info() { return plugin_info_; }
+  runtime::StageEntry& Entry(const std::string& id) { return *const_cast<runtime::StageEntry*>(lookup_.at(id)); }
 
  private:
   void Add(const std::string& id, uint32_t flags, std::vector<ParamDecl> params,
-           std::vector<runtime::PortDecl> inputs, std::vector<runtime::PortDecl> outputs) {
+           std::vector<runtime::PortDecl> inputs, std::vector<runtime::PortDecl> outputs,
+           const char* component_interface = nullptr, const char* version = nullptr) {
     infos_.emplace_back();
     LfStageInfo& info = infos_.back();
     info.struct_size = sizeof(LfStageInfo);
     info.flags = flags;
     info.check_params = &FakeCheck;
+    info.component_interface = component_interface;
+    info.version = version;
     entries_.emplace_back();
     runtime::StageEntry& e = entries_.back();
     e.id = id;
+    e.version = version ? version : "1.0.0";
+    e.own_version = version != nullptr;
     e.info = &info;
     e.plugin = &plugin_;
     e.params = std::move(params);

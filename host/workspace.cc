@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <sys/file.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -84,7 +85,11 @@ std::string CacheKeyText(const ResolvedNode& node,
   const LfPluginInfo* plugin = node.stage->plugin->info;
   std::string text = "locforge-cache-key 1\n";
   text += "stage " + node.stage->id + "\n";
-  text += "plugin_version " + std::string(plugin->version ? plugin->version : "") + "\n";
+  // A stage's own version keys its results; without one, its plugin's does.
+  if (node.stage->own_version)
+    text += "stage_version " + node.stage->version + "\n";
+  else
+    text += "plugin_version " + std::string(plugin->version ? plugin->version : "") + "\n";
   text += "sdk_version " + std::string(plugin->sdk_version ? plugin->sdk_version : "") + "\n";
   for (const auto& decl : node.stage->params) {
     if (decl.flags & LF_PARAM_NO_CACHE_KEY) continue;
@@ -94,6 +99,8 @@ std::string CacheKeyText(const ResolvedNode& node,
     if (decl.type == LF_PARAM_PATH && !value.empty())
       text += "stamp " + decl.name + "=" + PathStamp(value) + "\n";
   }
+  for (const auto& [param, component] : node.components)
+    text += "component " + param + "=" + component + "\n";
   for (const auto& in : node.inputs) {
     auto key = input_keys.find(in.node);
     text += "input " + in.port + "=" + (key == input_keys.end() ? "?" : key->second) + "\n";
@@ -142,6 +149,93 @@ fs::path Workspace::NewLogFile() const {
   for (int i = 1; fs::exists(file); ++i)
     file = root_ / "logs" / ("run-" + stamp + "-" + std::to_string(i) + ".log");
   return file;
+}
+
+fs::path Workspace::PartialDir(const fs::path& node_dir, bool per_item) {
+  fs::path p = node_dir;
+  p += per_item ? std::string(".partial") : ".partial-" + std::to_string(::getpid());
+  return p;
+}
+
+void Workspace::RemoveStalePartials(const fs::path& node_dir) {
+  const std::string prefix = node_dir.filename().string() + ".partial-";
+  std::error_code ec;
+  for (fs::directory_iterator it(node_dir.parent_path(), ec), end; !ec && it != end; it.increment(ec))
+    if (it->path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(it->path(), ec);
+}
+
+fs::path Workspace::LockFile(const fs::path& node_dir, const std::string& suffix) const {
+  const fs::path locks = root_ / "locks";
+  fs::create_directories(locks);
+  return locks / (node_dir.filename().string() + suffix);
+}
+
+std::string FormatManifest(const Manifest& m) {
+  std::string j = "{\n";
+  j += "  \"stage\": " + JsonString(m.stage) + ",\n";
+  j += "  \"plugin\": " + JsonString(m.plugin) + ",\n";
+  j += "  \"plugin_version\": " + JsonString(m.plugin_version) + ",\n";
+  j += "  \"stage_version\": " + JsonString(m.stage_version) + ",\n";
+  j += "  \"plugin_file\": " + JsonString(m.plugin_file) + ",\n";
+  j += "  \"key\": " + JsonString(m.key) + ",\n";
+  j += "  \"params\": {";
+  bool first = true;
+  for (const auto& [name, value] : m.params) {
+    j += std::string(first ? "\n" : ",\n") + "    " + JsonString(name) + ": " + JsonString(value);
+    first = false;
+  }
+  j += "\n  },\n  \"inputs\": [";
+  first = true;
+  for (const auto& in : m.inputs) {
+    j += std::string(first ? "\n" : ",\n") + "    {\"port\": " + JsonString(in.port) +
+         ", \"type\": " + JsonString(in.type) + ", \"path\": " + JsonString(in.path) + "}";
+    first = false;
+  }
+  char secs[32];
+  std::snprintf(secs, sizeof(secs), "%.3f", m.seconds);
+  j += "\n  ],\n  \"finished\": " + JsonString(m.finished) + ",\n  \"items\": " +
+       std::to_string(m.items) + ",\n  \"seconds\": " + secs + "\n}\n";
+  return j;
+}
+
+Manifest ReadManifest(const fs::path& node_dir) {
+  const fs::path file = node_dir / kCompleteMarker;
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(file.string());  // JSON is YAML
+  } catch (const YAML::Exception& e) {
+    throw InputError(file.string(), e.mark.line + 1, "manifest", "not JSON: " + e.msg);
+  }
+  if (!root.IsMap()) throw InputError(file.string(), 1, "manifest", "expected a JSON object");
+  Manifest m;
+  auto text = [&](const char* field) -> std::string {
+    const YAML::Node n = root[field];
+    if (!n) return "";
+    if (!n.IsScalar())
+      throw InputError(file.string(), n.Mark().line + 1, field, "expected a string");
+    return n.Scalar();
+  };
+  m.stage = text("stage");
+  m.plugin = text("plugin");
+  m.plugin_version = text("plugin_version");
+  m.stage_version = text("stage_version");
+  m.plugin_file = text("plugin_file");
+  m.key = text("key");
+  m.finished = text("finished");
+  try {
+    if (const YAML::Node n = root["items"]) m.items = n.as<uint64_t>();
+    if (const YAML::Node n = root["seconds"]) m.seconds = n.as<double>();
+  } catch (const YAML::Exception& e) {
+    throw InputError(file.string(), e.mark.line + 1, "items/seconds", "expected a number: " + e.msg);
+  }
+  if (const YAML::Node params = root["params"]; params && params.IsMap())
+    for (auto it = params.begin(); it != params.end(); ++it)
+      m.params[it->first.Scalar()] = it->second.IsScalar() ? it->second.Scalar() : "";
+  if (const YAML::Node inputs = root["inputs"]; inputs && inputs.IsSequence())
+    for (const auto& in : inputs)
+      m.inputs.push_back({in["port"] ? in["port"].Scalar() : "", in["type"] ? in["type"].Scalar() : "",
+                          in["path"] ? in["path"].Scalar() : ""});
+  return m;
 }
 
 void Publish(const fs::path& partial_dir, const fs::path& node_dir, const std::string& manifest) {

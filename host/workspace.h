@@ -1,12 +1,25 @@
-// The workspace on disk: cache keys of nodes, their artifact folders
-// (cache/<node>-<key16>/ with a .locforge-complete manifest), the nodes/
-// symlinks, per-node locks and the logs/ folder.
+// The workspace on disk and its node-folder protocol:
+//   cache/<node>-<key16>/              a node's artifacts; complete once it holds
+//                                      the manifest (kCompleteMarker, JSON)
+//   cache/<node>-<key16>.partial       a per-item node in progress: its journals,
+//                                      kept so a later run (or shard) resumes
+//   cache/<node>-<key16>.partial-<pid> a whole-stage run in progress, private to
+//                                      its process (stale once the node lock is held)
+//   locks/<node>-<key16>.lock          held while a node is computed (exclusive;
+//                                      shared by the shards of a sharded run)
+//   locks/<node>-<key16>.shard-I-of-N.lock, .publish.lock
+//   nodes/<node> -> ../cache/...       the node's current folder
+//   logs/run-<UTC time>.log
+// A finished node is published by writing its manifest into the partial
+// folder, then renaming that folder to the node's.
 #ifndef LOCFORGE_HOST_WORKSPACE_H_
 #define LOCFORGE_HOST_WORKSPACE_H_
 
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "graph.h"
 
@@ -20,9 +33,11 @@ inline constexpr const char* kCompleteMarker = ".locforge-complete";
 // file or of the folder's entries up to depth 2 (at most 10000 of them).
 std::string PathStamp(const fs::path& path);
 
-// The text hashed into a node's cache key: stage id, plugin version, SDK
-// version, canonical params (not LF_PARAM_NO_CACHE_KEY ones), PATH stamps and
-// the keys of the input nodes (`input_keys` maps node name -> key).
+// The text hashed into a node's cache key: stage id, the stage's version (its
+// own, else its plugin's), SDK version, canonical params (not
+// LF_PARAM_NO_CACHE_KEY ones), PATH stamps, the stage and version of each
+// component parameter, and the keys of the input nodes (`input_keys` maps
+// node name -> key).
 std::string CacheKeyText(const ResolvedNode& node,
                          const std::map<std::string, std::string>& input_keys);
 // SHA-256 hex of CacheKeyText.
@@ -46,9 +61,37 @@ class Workspace {
   // logs/run-<UTC timestamp>.log (unique).
   fs::path NewLogFile() const;
 
+  // The folder a run of a node writes into: `.partial` beside `node_dir` for
+  // a per-item node (persistent, so it resumes), else `.partial-<pid>`.
+  static fs::path PartialDir(const fs::path& node_dir, bool per_item);
+  // Removes the `.partial-<pid>` folders of whole-stage runs of `node_dir`:
+  // once its node lock is held, any left over is stale (its process died).
+  static void RemoveStalePartials(const fs::path& node_dir);
+  // locks/<folder name of node_dir><suffix> (".lock", ".publish.lock", ...).
+  fs::path LockFile(const fs::path& node_dir, const std::string& suffix) const;
+
  private:
   fs::path root_;
 };
+
+// What a complete node folder records about its run (its kCompleteMarker).
+struct Manifest {
+  struct Input {
+    std::string port, type, path;
+  };
+  std::string stage;            // kind/name
+  std::string plugin, plugin_version, stage_version, plugin_file;
+  std::string key;              // full cache key
+  std::map<std::string, std::string> params;  // canonical values
+  std::vector<Input> inputs;
+  std::string finished;         // UTC time
+  uint64_t items = 0;           // per-item stages: items processed
+  double seconds = 0;
+};
+std::string FormatManifest(const Manifest& manifest);  // JSON
+// Reads the manifest of a complete node folder; throws InputError naming the
+// file and field when it is not the JSON FormatManifest writes.
+Manifest ReadManifest(const fs::path& node_dir);
 
 // Writes `manifest` as the completion marker into `partial_dir`, then
 // renames it to `node_dir` (an existing `node_dir`, e.g. under --force, is
@@ -68,7 +111,7 @@ class FileLock {
   int fd_ = -1;
 };
 
-// Minimal JSON string escaping for manifests.
+// JSON string escaping (manifests).
 std::string JsonString(const std::string& s);
 // "2026-11-22T04:00:00Z"
 std::string UtcNow(bool compact = false);

@@ -1,6 +1,10 @@
 // SHA-256 vectors, cache key stability and sensitivity, node folders, links.
 #include "workspace.h"
 
+#include "locforge/error.h"
+#include "locforge/fs.h"
+#include "locforge/params.h"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -129,6 +133,81 @@ TEST(WorkspaceTest, FoldersLinksAndPublish) {
   Publish(partial, dir, "{}\n");
   EXPECT_TRUE(fs::exists(dir / "new.txt"));
   EXPECT_FALSE(fs::exists(dir / "out.txt"));
+  fs::remove_all(root);
+}
+
+TEST_F(CacheKeyTest, AStageVersionKeysItsResultsInsteadOfThePluginVersion) {
+  ResolvedNode n;
+  n.name = "icp";
+  n.stage = stages_.Find("registration/fake_icp");  // its own version 2.0.0
+  n.params = {{"iterations", "10"}, {"mode", "fast"}};
+  const std::string key = CacheKey(n, {});
+  EXPECT_NE(CacheKeyText(n, {}).find("stage_version 2.0.0"), std::string::npos);
+  // The plugin's version no longer matters: its other stages can move on.
+  stages_.plugin_info().version = "9.9.9";
+  EXPECT_EQ(key, CacheKey(n, {}));
+  stages_.plugin_info().version = "1.0.0";
+  stages_.Entry("registration/fake_icp").version = "2.0.1";
+  EXPECT_NE(key, CacheKey(n, {}));
+  stages_.Entry("registration/fake_icp").version = "2.0.0";
+}
+
+TEST(WorkspaceTest, NodeFolderProtocol) {
+  const fs::path root = locforge::testing::MakeTempDir("lf-ws-protocol");
+  Workspace ws(root / "ws");
+  const fs::path dir = ws.NodeDir("feats", std::string(64, 'b'));
+  EXPECT_EQ(Workspace::PartialDir(dir, true), root / "ws" / "cache" / "feats-bbbbbbbbbbbbbbbb.partial");
+  const fs::path mine = Workspace::PartialDir(dir, false);
+  EXPECT_EQ(mine.filename().string().rfind("feats-bbbbbbbbbbbbbbbb.partial-", 0), 0u);
+  EXPECT_EQ(ws.LockFile(dir, ".lock"), root / "ws" / "locks" / "feats-bbbbbbbbbbbbbbbb.lock");
+  // Whole-stage partial folders left by a dead process go; the per-item one stays.
+  fs::path stale = dir;
+  stale += ".partial-999999";
+  fs::create_directories(stale);
+  fs::create_directories(Workspace::PartialDir(dir, true));
+  Workspace::RemoveStalePartials(dir);
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_TRUE(fs::exists(Workspace::PartialDir(dir, true)));
+  fs::remove_all(root);
+}
+
+TEST(WorkspaceTest, ManifestRoundTripsThroughAJsonReader) {
+  const fs::path root = locforge::testing::MakeTempDir("lf-ws-manifest");
+  Manifest m;
+  m.stage = "features/sift";
+  m.plugin = "features";
+  m.plugin_version = "1.0.0";
+  m.stage_version = "1.1.0";
+  m.plugin_file = "/p/libfeatures.so";
+  m.key = std::string(64, 'c');
+  // Values with quotes, backslashes, list and component separators.
+  m.params = {{"type", "a \"quoted\" \\ name"},
+              {"scales", JoinList({"1", "0.5"})},
+              {"backend", "registration/gicp" + std::string(1, LF_COMPONENT_SEPARATOR) + "voxel_size=0.2"},
+              {"items", "\"items\": 7"}};  // a value that fooled a search for "items"
+  m.inputs = {{"images", "kapture.dataset", "/w/cache/images-0123"}};
+  m.finished = "2026-12-01T23:00:00Z";
+  m.items = 42;
+  m.seconds = 1.5;
+  fs::create_directories(root / "node");
+  WriteFileAtomic(root / "node" / kCompleteMarker, FormatManifest(m));
+  const Manifest back = ReadManifest(root / "node");
+  EXPECT_EQ(back.stage, m.stage);
+  EXPECT_EQ(back.stage_version, "1.1.0");
+  EXPECT_EQ(back.key, m.key);
+  EXPECT_EQ(back.params, m.params);
+  ASSERT_EQ(back.inputs.size(), 1u);
+  EXPECT_EQ(back.inputs[0].path, "/w/cache/images-0123");
+  EXPECT_EQ(back.items, 42u);
+  EXPECT_DOUBLE_EQ(back.seconds, 1.5);
+  // Not JSON: an error naming the file, not a crash or a silent 0.
+  WriteFileAtomic(root / "node" / kCompleteMarker, "{\"items\": [1,\n");
+  try {
+    ReadManifest(root / "node");
+    FAIL() << "malformed manifest accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(kCompleteMarker), std::string::npos) << e.what();
+  }
   fs::remove_all(root);
 }
 

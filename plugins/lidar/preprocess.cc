@@ -9,7 +9,7 @@
 #include "cloud.h"
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
-#include "stages.h"
+#include "lidar_stages.h"
 
 namespace locforge::lidar {
 

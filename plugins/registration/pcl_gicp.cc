@@ -17,7 +17,9 @@ using Gicp = WithIterations<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ,
 class PclGicp : public RegistrationComponent<PclGicp, PclOptions> {
  public:
   static StageMeta Meta() {
-    return {"registration", "pcl_gicp", "PCL Generalized-ICP", {}, {}};
+    StageMeta meta = {"registration", "pcl_gicp", "PCL Generalized-ICP", {}, {}};
+    meta.version = "1.0.0";
+    return meta;
   }
   explicit PclGicp(PclOptions o) : RegistrationComponent(std::move(o)) {}
 
@@ -49,7 +51,6 @@ class PclGicp : public RegistrationComponent<PclGicp, PclOptions> {
 };
 
 }  // namespace
-}  // namespace locforge::pclreg
+LOCFORGE_EXPORT_STAGE(AddPclGicp, PclGicp)
 
-LOCFORGE_PLUGIN("registration_pcl_gicp", "1.0.0", "PCL Generalized-ICP back-end",
-                locforge::pclreg::PclGicp)
+}  // namespace locforge::pclreg

@@ -36,7 +36,7 @@ const Pair& Data() {
 runtime::Registry& Plugins() {
   static runtime::Registry* r = [] {
     auto* reg = new runtime::Registry;
-    for (const char* f : {LF_GICP_PLUGIN, LF_PCL_GICP_PLUGIN, LF_ICP_PLANE_PLUGIN}) reg->LoadFile(f);
+    reg->LoadFile(LF_REGISTRATION_PLUGIN);
     return reg;
   }();
   return *r;

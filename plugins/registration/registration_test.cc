@@ -19,7 +19,7 @@
 namespace locforge {
 namespace {
 
-const char* const kPlugins[] = {LF_GICP_PLUGIN, LF_PCL_GICP_PLUGIN, LF_ICP_PLANE_PLUGIN};
+const char* const kPlugins[] = {LF_REGISTRATION_PLUGIN};
 const char* const kBackends[] = {"registration/gicp", "registration/pcl_gicp",
                                  "registration/icp_plane"};
 using Params = std::vector<std::pair<std::string, std::string>>;

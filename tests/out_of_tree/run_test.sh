@@ -44,7 +44,7 @@ step "installed headers compile standalone and stay light"
 eigen_flags=()
 IFS=';' read -r -a eigen_list <<<"$eigen_dirs"
 for d in "${eigen_list[@]}"; do [[ -n "$d" ]] && eigen_flags+=("-I$d"); done
-heavy='#include *[<"](yaml-cpp|sqlite3|pcl|opencv2|ceres|gtest)'
+heavy='#include *[<"](yaml-cpp|sqlite3|pcl|opencv2|ceres|gtest|cairo|ft2build|fontconfig)'
 if grep -rnE "$heavy" "$prefix/include/locforge" >&2; then
   fail "an installed header includes a heavy dependency (see above)"
 fi
@@ -90,7 +90,7 @@ fi
 
 step "locforge plugins describe thirdparty/word_count"
 run "$host" plugins describe thirdparty/word_count
-expect_in "$work/last.log" "thirdparty/word_count" "hello_plugin 0.3.0" "min_length" \
+expect_in "$work/last.log" "thirdparty/word_count" "hello_plugin 0.4.0" "min_length" \
   "range: [1, 100]" "case_sensitive" "Counts the words" "texts: thirdparty.texts" \
   "report: report"
 
@@ -113,6 +113,16 @@ report="$work/ws/nodes/count/counts.tsv"
 [[ -f "$report" ]] || fail "$report was not written"
 [[ "$(cat "$report")" == "$expected" ]] || { cat "$report" >&2; fail "unexpected counts.tsv"; }
 [[ -f "$work/ws/nodes/texts/doc_002.txt" ]] || fail "text_files did not write doc_002.txt"
+# The plot library of the installed SDK draws (its Cairo is a private dependency).
+figure="$work/ws/nodes/count/counts"
+[[ "$(head -c 8 "$figure.png" | od -An -tx1 | tr -d ' \n')" == "89504e470d0a1a0a" ]] \
+  || fail "$figure.png is not a PNG"
+(( $(stat -c %s "$figure.png") > 2000 )) || fail "$figure.png is nearly empty"
+grep -q "<title>Words by rank</title>" "$figure.svg" || fail "$figure.svg lacks its title"
+# The exported targets' interface does not name Cairo (a private dependency).
+if grep -li "cairo" "$prefix"/lib/cmake/locforge/locforgeTargets*.cmake >/dev/null; then
+  fail "the installed targets name Cairo"
+fi
 
 step "a second run is cached, a changed parameter recomputes"
 run "$host" run "$work/graph.yaml" --workspace "$work/ws"

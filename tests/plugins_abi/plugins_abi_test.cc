@@ -134,6 +134,35 @@ TEST(Registry, LoadsPluginsWithLargerFutureStructs) {
   EXPECT_EQ(resolved.at("beta"), "5");
 }
 
+TEST(Registry, AppendedFieldsAreReadOnlyWhenTheStructHoldsThem) {
+  Registry registry;
+  ASSERT_TRUE(registry.LoadFile(BrokenLib("v1_structs")))
+      << (registry.problems().empty() ? "" : registry.problems().front().message);
+  const auto* stage = registry.Find("broken/v1_stage");
+  ASSERT_NE(stage, nullptr);
+  // No version field: the plugin's version keys the stage's results.
+  EXPECT_FALSE(stage->own_version);
+  EXPECT_EQ(stage->version, "0.0.1");
+  EXPECT_EQ(stage->params.at(0).component_interface, "");
+}
+
+TEST(Registry, StageVersionsOverrideThePluginVersion) {
+  Registry registry;
+  ASSERT_TRUE(registry.LoadFile(kTestPlugins / "liblftest_components.so"));
+  const auto* kabsch = registry.Find("registration/kabsch_test");
+  ASSERT_NE(kabsch, nullptr);
+  EXPECT_TRUE(kabsch->own_version);
+  EXPECT_EQ(kabsch->version, "2.0.0");
+  const auto* check = registry.Find("test/align_check");
+  ASSERT_NE(check, nullptr);
+  EXPECT_FALSE(check->own_version);
+  EXPECT_EQ(check->version, "1.0.0");
+  // A typed component parameter carries the interface it needs.
+  ASSERT_EQ(check->params.at(0).name, "backend");
+  EXPECT_EQ(check->params.at(0).type, LF_PARAM_COMPONENT);
+  EXPECT_EQ(check->params.at(0).component_interface, LF_REGISTRATION_INTERFACE);
+}
+
 TEST(Registry, MetadataIsReadIntoDecls) {
   Registry registry;
   ASSERT_TRUE(registry.LoadFile(kExamples));

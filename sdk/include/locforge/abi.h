@@ -65,7 +65,10 @@ typedef enum LfParamType {
   LF_PARAM_ENUM = 5,         /* one of `choices` */
   LF_PARAM_INT_LIST = 6,
   LF_PARAM_DOUBLE_LIST = 7,
-  LF_PARAM_STRING_LIST = 8
+  LF_PARAM_STRING_LIST = 8,
+  LF_PARAM_COMPONENT = 9     /* an in-process component chosen in the graph: a stage id and the
+                                parameters given to it (format below); the host checks them
+                                against that stage's own declarations */
 } LfParamType;
 
 /* Flags of a parameter. */
@@ -78,6 +81,10 @@ enum {
  * bools "true"/"false", ints in decimal, doubles with 17 significant digits,
  * lists as their elements joined by LF_LIST_SEPARATOR. */
 #define LF_LIST_SEPARATOR '\x1f'
+/* LF_PARAM_COMPONENT values: "kind/name", then for each parameter given to the
+ * component, in name order, LF_COMPONENT_SEPARATOR "name=value" with the
+ * value in its canonical form (lists keep LF_LIST_SEPARATOR). */
+#define LF_COMPONENT_SEPARATOR '\x1e'
 
 typedef struct LfParamSpec {
   uint32_t struct_size;
@@ -89,6 +96,9 @@ typedef struct LfParamSpec {
   int32_t has_min, has_max;  /* numeric bounds (inclusive), per element for lists */
   double min_value, max_value;
   const char* choices;       /* LF_PARAM_ENUM: choices joined by '|' */
+  /* Appended (read only when struct_size covers it): */
+  const char* component_interface; /* LF_PARAM_COMPONENT: interface the chosen stage must
+                                       implement, e.g. LF_REGISTRATION_INTERFACE; NULL: any */
 } LfParamSpec;
 
 /* A parameter value handed to a plugin. */
@@ -194,6 +204,9 @@ typedef struct LfStageInfo {
    * `component` returns a pointer to the interface's function table. */
   const char* component_interface;
   const void* (*component)(void* instance);
+  /* Appended (read only when struct_size covers it): */
+  const char* version;        /* the stage's own version; NULL: its plugin's. Enters the
+                                 cache key of the stage's results instead of the plugin's */
 } LfStageInfo;
 
 /* ---- Plugin ------------------------------------------------------------ */
@@ -202,7 +215,8 @@ typedef struct LfPluginInfo {
   uint32_t abi_version;       /* must equal the host's LF_ABI_VERSION */
   uint32_t struct_size;       /* sizeof(LfPluginInfo) the plugin was built with */
   const char* name;
-  const char* version;        /* the plugin's own version; part of cache keys */
+  const char* version;        /* the plugin's own version; part of the cache keys of the
+                                 results of its stages that declare no version of their own */
   const char* description;
   const char* sdk_version;    /* locforge SDK version it was built against */
   const LfStageInfo* stages;

@@ -12,10 +12,32 @@
 //   };
 //
 // Defaults are read off a default-constructed Options, so the in-class
-// initialisers are the single source of truth.
+// initialisers are the single source of truth. A stage over a library holds
+// the library's options struct and declares its members in place (nested
+// members; angles in degrees in the graph for members in radians):
+//
+//   struct BAStageOptions {
+//     int rounds = 6;
+//     sfm::SplineBAOptions ba;  // the library's defaults are the stage's
+//     static void Declare(locforge::ParamSchema<BAStageOptions>& s) {
+//       s.Add("rounds", &BAStageOptions::rounds, "Outer rounds").Min(1);
+//       s.Add("knot_spacing_s", &BAStageOptions::ba, &sfm::SplineBAOptions::knot_spacing_s, "...");
+//       s.AddDegrees("prior_sigma_rotation_deg", &BAStageOptions::ba,
+//                    &sfm::SplineBAOptions::prior_sigma_rotation_rad, "...").Min(1e-6);
+//     }
+//     bool Check(std::string* why) const;  // calls the library's own check
+//   };
+//
+// A component (another stage used in-process, e.g. a registration back-end)
+// chosen and parameterised in the graph is a ComponentSpec member:
+//
+//   locforge::ComponentSpec registration{"registration/gicp"};
+//   s.Add("registration", &O::registration, "Registration back-end")
+//       .Implements(LF_REGISTRATION_INTERFACE);
 #ifndef LOCFORGE_PARAMS_H_
 #define LOCFORGE_PARAMS_H_
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -41,9 +63,40 @@ struct ParamDecl {
   bool has_min = false, has_max = false;
   double min_value = 0, max_value = 0;
   std::vector<std::string> choices;
+  std::string component_interface;  // LF_PARAM_COMPONENT: interface required ("" : any)
 
   bool required() const { return (flags & LF_PARAM_REQUIRED) != 0; }
 };
+
+// A component chosen in the graph: the stage id of an in-process component
+// and the parameters given to it (canonical values, sorted by name; the
+// component's defaults hold for the others). YAML:
+//   registration: registration/gicp
+//   registration: {stage: registration/gicp, params: {max_correspondence_distance: 1.0}}
+struct ComponentSpec {
+  ComponentSpec() = default;
+  ComponentSpec(std::string stage_id) : stage(std::move(stage_id)) {}  // NOLINT: implicit on purpose
+  std::string stage;
+  std::vector<std::pair<std::string, std::string>> params;
+
+  // The value of parameter `name`, or nullptr when not given.
+  const std::string* Find(const std::string& name) const;
+  // A copy with parameter `name` set to `canonical` (replaced when given).
+  ComponentSpec With(const std::string& name, const std::string& canonical) const;
+  bool operator==(const ComponentSpec& o) const { return stage == o.stage && params == o.params; }
+};
+
+// Canonical string of a component value (abi.h, LF_PARAM_COMPONENT).
+std::string FormatComponent(const ComponentSpec& spec);
+// Reads a canonical component value; false with the reason when malformed
+// (no "kind/name", an entry without '=', a name given twice).
+bool ParseComponent(const std::string& canonical, ComponentSpec* out, std::string* why = nullptr);
+
+// Angles declared in degrees for members held in radians: the conversion of
+// every such parameter, and the shortest degree string that reads back to
+// exactly `radians` (the declared default).
+inline double DegreesToRadians(double degrees) { return degrees * M_PI / 180.0; }
+std::string FormatDegrees(double radians);
 
 const char* ParamTypeName(LfParamType type);
 
@@ -118,6 +171,22 @@ struct IntParamTraits {
 template <> struct ParamTraits<int> : IntParamTraits<int> {};
 template <> struct ParamTraits<int64_t> : IntParamTraits<int64_t> {};
 template <> struct ParamTraits<uint32_t> : IntParamTraits<uint32_t> {};
+template <> struct ParamTraits<ComponentSpec> {
+  static constexpr LfParamType kType = LF_PARAM_COMPONENT;
+  static std::string Format(const ComponentSpec& v) { return FormatComponent(v); }
+  static bool Parse(const std::string& s, ComponentSpec* v) { return ParseComponent(s, v); }
+};
+// A double in radians read and written in degrees (ParamSchema::AddDegrees).
+struct DegreeTraits {
+  static constexpr LfParamType kType = LF_PARAM_DOUBLE;
+  static std::string Format(double radians) { return FormatDegrees(radians); }
+  static bool Parse(const std::string& s, double* radians) {
+    double degrees;
+    if (!ParseDouble(s, &degrees)) return false;
+    *radians = DegreesToRadians(degrees);
+    return true;
+  }
+};
 template <typename E>
 struct ParamTraits<std::vector<E>> {
   static constexpr LfParamType kType =
@@ -172,6 +241,12 @@ class ParamBuilder {
   }
   // Does not change results (threads, verbosity): left out of cache keys.
   ParamBuilder& NoCacheKey() { decl_->flags |= LF_PARAM_NO_CACHE_KEY; return *this; }
+  // A component parameter: the chosen stage must implement `interface`
+  // (e.g. LF_REGISTRATION_INTERFACE).
+  ParamBuilder& Implements(const char* interface) {
+    decl_->component_interface = interface;
+    return *this;
+  }
 
  private:
   ParamDecl* decl_;
@@ -182,19 +257,28 @@ class ParamSchema {
  public:
   ParamSchema() { Options::Declare(*this); }
 
+  // A member of Options.
   template <typename T>
   ParamBuilder Add(const char* name, T Options::*field, const char* doc) {
-    using Traits = internal::ParamTraits<T>;
-    auto entry = std::make_unique<Entry>();
-    entry->decl.name = name;
-    entry->decl.type = Traits::kType;
-    entry->decl.doc = doc;
-    entry->decl.default_value = Traits::Format(Options{}.*field);
-    entry->parse = [field](Options& o, const std::string& s) {
-      return Traits::Parse(s, &(o.*field));
-    };
-    entries_.push_back(std::move(entry));
-    return ParamBuilder(&entries_.back()->decl);
+    return AddField<internal::ParamTraits<T>, T>(
+        name, doc, [field](Options& o) -> T& { return o.*field; });
+  }
+  // A member of a member struct of Options (e.g. the options of the library
+  // the stage wraps): one declaration, the library's default.
+  template <typename T, typename M>
+  ParamBuilder Add(const char* name, M Options::*outer, T M::*inner, const char* doc) {
+    return AddField<internal::ParamTraits<T>, T>(
+        name, doc, [outer, inner](Options& o) -> T& { return (o.*outer).*inner; });
+  }
+  // An angle given in degrees (name it *_deg) for a member in radians.
+  ParamBuilder AddDegrees(const char* name, double Options::*field, const char* doc) {
+    return AddField<internal::DegreeTraits, double>(
+        name, doc, [field](Options& o) -> double& { return o.*field; });
+  }
+  template <typename M>
+  ParamBuilder AddDegrees(const char* name, M Options::*outer, double M::*inner, const char* doc) {
+    return AddField<internal::DegreeTraits, double>(
+        name, doc, [outer, inner](Options& o) -> double& { return (o.*outer).*inner; });
   }
 
   std::vector<ParamDecl> Decls() const {
@@ -226,6 +310,20 @@ class ParamSchema {
     ParamDecl decl;
     std::function<bool(Options&, const std::string&)> parse;
   };
+  template <typename Traits, typename T, typename Access>
+  ParamBuilder AddField(const char* name, const char* doc, Access access) {
+    auto entry = std::make_unique<Entry>();
+    entry->decl.name = name;
+    entry->decl.type = Traits::kType;
+    entry->decl.doc = doc;
+    Options defaults{};
+    entry->decl.default_value = Traits::Format(access(defaults));
+    entry->parse = [access](Options& o, const std::string& s) {
+      return Traits::Parse(s, &access(o));
+    };
+    entries_.push_back(std::move(entry));
+    return ParamBuilder(&entries_.back()->decl);
+  }
   std::vector<std::unique_ptr<Entry>> entries_;
 };
 

@@ -7,8 +7,10 @@
 //   class Blur : public locforge::PerItemStage<BlurOptions> {
 //    public:
 //     static locforge::StageMeta Meta() {
-//       return {"example", "blur", "Blurs every image",
-//               {{"images", "kapture.dataset"}}, {{"images", "kapture.dataset"}}};
+//       locforge::StageMeta m{"example", "blur", "Blurs every image",
+//                             {{"images", "kapture.dataset"}}, {{"images", "kapture.dataset"}}};
+//       m.version = "1.0.0";  // optional: the stage's own version
+//       return m;
 //     }
 //     using PerItemStage::PerItemStage;
 //     std::vector<std::string> ListItems(locforge::RunContext& ctx) override;
@@ -47,6 +49,10 @@ struct StageMeta {
   std::vector<PortMeta> inputs;
   std::vector<PortMeta> outputs;
   uint32_t flags = 0;  // extra LF_STAGE_* flags (SERIAL_ITEMS, NONDETERMINISTIC)
+  // The stage's own version: bump it when its results change. It enters the
+  // cache keys of its results instead of the plugin's version, so the other
+  // stages of the plugin keep their cached results. Empty: the plugin's.
+  std::string version = {};
 };
 
 // C++ view of LfRunContext, handed to Run/ListItems/ProcessItem/Finalize.
@@ -296,19 +302,50 @@ class PluginBuilder {
   LfPluginInfo info_{};
 };
 
+template <typename S, typename = void>
+struct IsExported : std::false_type {};
+template <typename S>
+struct IsExported<S, std::void_t<decltype(&S::kExportedStage)>> : std::true_type {};
+
+template <typename S>
+void AddListed(PluginBuilder* builder) {
+  if constexpr (IsExported<S>::value)
+    S::Add(*builder);
+  else
+    builder->template AddStage<S>();
+}
+
 template <typename... Stages>
 const LfPluginInfo* BuildPlugin(const char* name, const char* version, const char* description) {
   // Built once; never freed, as plugins are never unloaded.
   static const LfPluginInfo* info = [&] {
     auto* builder = new PluginBuilder(name, version, description);
-    (builder->template AddStage<Stages>(), ...);
+    (AddListed<Stages>(builder), ...);
     return builder->Finish();
   }();
   return info;
 }
 
 }  // namespace internal
+
+// A stage defined in another file of the same plugin, whose class stays
+// private to that file. The stage file ends with
+//   LOCFORGE_EXPORT_STAGE(AddPairsFile, PairsFileStage)
+// and the plugin's entry file declares and lists it:
+//   namespace locforge::pairs { LOCFORGE_DECLARE_STAGE(AddPairsFile); }
+//   LOCFORGE_PLUGIN("pairs", "1.0.0", "Image pairs", locforge::Exported<locforge::pairs::AddPairsFile>)
+using StageAdder = void (*)(internal::PluginBuilder&);
+template <StageAdder kAdd>
+struct Exported {
+  static constexpr bool kExportedStage = true;
+  static void Add(internal::PluginBuilder& builder) { kAdd(builder); }
+};
+
 }  // namespace locforge
+
+#define LOCFORGE_DECLARE_STAGE(FUNCTION) void FUNCTION(::locforge::internal::PluginBuilder& builder)
+#define LOCFORGE_EXPORT_STAGE(FUNCTION, STAGE) \
+  LOCFORGE_DECLARE_STAGE(FUNCTION) { builder.AddStage<STAGE>(); }
 
 // Defines the plugin's single exported entry point.
 #define LOCFORGE_PLUGIN(NAME, VERSION, DESCRIPTION, ...)                               \

@@ -3,8 +3,12 @@
 //
 // Caller side (a stage using a back-end in-process):
 //
-//   auto icp = locforge::RegistrationBackend::Create(ctx, "registration/gicp",
-//                                                    {{"max_correspondence_distance", "1.0"}});
+//   // options().registration: a ComponentSpec parameter chosen in the graph,
+//   // declared .Implements(LF_REGISTRATION_INTERFACE) (params.h)
+//   auto icp = locforge::RegistrationBackend::Create(ctx, options().registration);
+//   // or by id with parameters, e.g. one of them overridden:
+//   auto fine = locforge::RegistrationBackend::Create(
+//       ctx, options().registration.With("max_correspondence_distance", "0.3"));
 //   locforge::RegistrationResult r = icp.Align(source, target, guess, ctx.threads());
 //   if (r.converged) use(r.T_target_source, r.information);
 //
@@ -84,6 +88,10 @@ class RegistrationBackend {
   // or is not a LF_REGISTRATION_INTERFACE component.
   static RegistrationBackend Create(const RunContext& ctx, const std::string& stage_id,
                                     const std::vector<std::pair<std::string, std::string>>& params = {});
+  // The component of a ComponentSpec parameter, with its parameters.
+  static RegistrationBackend Create(const RunContext& ctx, const ComponentSpec& component) {
+    return Create(ctx, component.stage, component.params);
+  }
   // Wraps a component created by other means (e.g. runtime::StageInstance in
   // tests): `table` is its interface table, `release` destroys it (may be empty).
   RegistrationBackend(const LfRegistrationInterface* table, void* instance, std::string name,

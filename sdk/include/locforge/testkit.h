@@ -70,6 +70,14 @@ struct DeterminismCase {
 };
 Report CheckDeterminism(const runtime::Registry& registry, const DeterminismCase& c);
 
+// Runs one stage of `registry` (its parameters checked as the host checks
+// them) into `output_dir`, its workspace the parent folder; throws Error with
+// the stage's message when it fails. For tests that run stages in process.
+runtime::RunResult RunStage(const runtime::Registry& registry, const std::string& stage_id,
+                            const std::vector<std::pair<std::string, std::string>>& params,
+                            const std::vector<runtime::InputArtifact>& inputs, const fs::path& output_dir,
+                            int threads = 2);
+
 // Compares two folders recursively, byte for byte. Journal files of per-item
 // runs (`.items-done.*`) are ignored: their line order follows thread timing.
 Report CompareFolders(const fs::path& a, const fs::path& b);

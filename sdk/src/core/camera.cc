@@ -1,8 +1,9 @@
 // Camera models, following COLMAP 3.8's src/base/camera_models.h: the lens
 // distortion acts on the normalised image plane (u, v) = (X/Z, Y/Z), and the
-// pixel is (fx * u_d + cx, fy * v_d + cy). Models without a closed-form
-// inverse are undistorted by COLMAP's Newton iteration with a numeric
-// (central difference) Jacobian.
+// pixel is (fx * u_d + cx, fy * v_d + cy); the distortion formulas are the
+// templates of camera_model.h, shared with the bundle adjuster. Models
+// without a closed-form inverse are undistorted by COLMAP's Newton iteration
+// with a numeric (central difference) Jacobian.
 #include "locforge/camera.h"
 
 #include <Eigen/LU>
@@ -10,6 +11,7 @@
 #include <cmath>
 #include <limits>
 
+#include "locforge/camera_model.h"
 #include "locforge/error.h"
 #include "locforge/params.h"
 
@@ -40,94 +42,22 @@ const std::vector<CameraModelInfo>& ModelTable() {
   return table;
 }
 
-// Models whose first parameter is a single focal length f (fx = fy = f).
-bool HasSingleFocal(Id id) {
-  return id == Id::kSimplePinhole || id == Id::kSimpleRadial || id == Id::kRadial ||
-         id == Id::kSimpleRadialFisheye || id == Id::kRadialFisheye;
-}
+using camera_model::ExtraOffset;
+using camera_model::HasSingleFocal;
 
-// Index of the first distortion ("extra") parameter.
-size_t ExtraOffset(Id id) { return HasSingleFocal(id) ? 3 : 4; }
-
-// COLMAP's `Distortion` of the models that add a delta (du, dv) to (u, v).
+// The distortion delta of model `id` (camera_model.h).
 void Distortion(Id id, const double* k, double u, double v, double* du, double* dv) {
-  const double u2 = u * u;
-  const double v2 = v * v;
   switch (id) {
-    case Id::kSimpleRadial: {
-      const double radial = k[0] * (u2 + v2);
-      *du = u * radial;
-      *dv = v * radial;
-      return;
-    }
-    case Id::kRadial: {
-      const double r2 = u2 + v2;
-      const double radial = k[0] * r2 + k[1] * r2 * r2;
-      *du = u * radial;
-      *dv = v * radial;
-      return;
-    }
-    case Id::kOpenCV: {
-      const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3];
-      const double uv = u * v;
-      const double r2 = u2 + v2;
-      const double radial = k1 * r2 + k2 * r2 * r2;
-      *du = u * radial + 2.0 * p1 * uv + p2 * (r2 + 2.0 * u2);
-      *dv = v * radial + 2.0 * p2 * uv + p1 * (r2 + 2.0 * v2);
-      return;
-    }
-    case Id::kFullOpenCV: {
-      const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3];
-      const double k3 = k[4], k4 = k[5], k5 = k[6], k6 = k[7];
-      const double uv = u * v;
-      const double r2 = u2 + v2;
-      const double r4 = r2 * r2;
-      const double r6 = r4 * r2;
-      const double radial = (1.0 + k1 * r2 + k2 * r4 + k3 * r6) /
-                            (1.0 + k4 * r2 + k5 * r4 + k6 * r6);
-      *du = u * radial + 2.0 * p1 * uv + p2 * (r2 + 2.0 * u2) - u;
-      *dv = v * radial + 2.0 * p2 * uv + p1 * (r2 + 2.0 * v2) - v;
-      return;
-    }
-    case Id::kOpenCVFisheye:
+    case Id::kSimpleRadial: return camera_model::Distortion<Id::kSimpleRadial>(k, u, v, du, dv);
+    case Id::kRadial: return camera_model::Distortion<Id::kRadial>(k, u, v, du, dv);
+    case Id::kOpenCV: return camera_model::Distortion<Id::kOpenCV>(k, u, v, du, dv);
+    case Id::kFullOpenCV: return camera_model::Distortion<Id::kFullOpenCV>(k, u, v, du, dv);
+    case Id::kOpenCVFisheye: return camera_model::Distortion<Id::kOpenCVFisheye>(k, u, v, du, dv);
     case Id::kSimpleRadialFisheye:
-    case Id::kRadialFisheye: {
-      const double r = std::sqrt(u2 + v2);
-      if (r <= kEps) {
-        *du = 0;
-        *dv = 0;
-        return;
-      }
-      const double theta = std::atan(r);
-      const double t2 = theta * theta;
-      const double t4 = t2 * t2;
-      double poly = 1.0;
-      if (id == Id::kSimpleRadialFisheye) {
-        poly += k[0] * t2;
-      } else if (id == Id::kRadialFisheye) {
-        poly += k[0] * t2 + k[1] * t4;
-      } else {
-        poly += k[0] * t2 + k[1] * t4 + k[2] * t4 * t2 + k[3] * t4 * t4;
-      }
-      const double thetad = theta * poly;
-      *du = u * thetad / r - u;
-      *dv = v * thetad / r - v;
-      return;
-    }
-    case Id::kThinPrismFisheye: {
-      // Acts on the equidistant coordinates (theta-scaled), see ToEquidistant.
-      const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3];
-      const double k3 = k[4], k4 = k[5], sx1 = k[6], sy1 = k[7];
-      const double uv = u * v;
-      const double r2 = u2 + v2;
-      const double r4 = r2 * r2;
-      const double r6 = r4 * r2;
-      const double r8 = r6 * r2;
-      const double radial = k1 * r2 + k2 * r4 + k3 * r6 + k4 * r8;
-      *du = u * radial + 2.0 * p1 * uv + p2 * (r2 + 2.0 * u2) + sx1 * r2;
-      *dv = v * radial + 2.0 * p2 * uv + p1 * (r2 + 2.0 * v2) + sy1 * r2;
-      return;
-    }
+      return camera_model::Distortion<Id::kSimpleRadialFisheye>(k, u, v, du, dv);
+    case Id::kRadialFisheye: return camera_model::Distortion<Id::kRadialFisheye>(k, u, v, du, dv);
+    case Id::kThinPrismFisheye:
+      return camera_model::Distortion<Id::kThinPrismFisheye>(k, u, v, du, dv);
     default:
       *du = 0;
       *dv = 0;

@@ -22,6 +22,7 @@ const char* ParamTypeName(LfParamType type) {
     case LF_PARAM_INT_LIST: return "int list";
     case LF_PARAM_DOUBLE_LIST: return "double list";
     case LF_PARAM_STRING_LIST: return "string list";
+    case LF_PARAM_COMPONENT: return "component";
   }
   return "unknown";
 }
@@ -65,6 +66,79 @@ std::vector<std::string> SplitList(const std::string& canonical) {
     start = pos + 1;
   }
   return out;
+}
+
+std::string FormatDegrees(double radians) {
+  // Shortest decimal degrees that convert back to exactly `radians`, so a
+  // default written DegreesToRadians(0.115) shows (and reads back) as 0.115.
+  const double degrees = radians * 180.0 / M_PI;
+  char buf[64];
+  for (int precision = 1; precision <= 17; ++precision) {
+    std::snprintf(buf, sizeof(buf), "%.*g", precision, degrees);
+    if (DegreesToRadians(std::strtod(buf, nullptr)) == radians) return FormatDouble(std::strtod(buf, nullptr));
+  }
+  return FormatDouble(degrees);
+}
+
+const std::string* ComponentSpec::Find(const std::string& name) const {
+  for (const auto& [k, v] : params)
+    if (k == name) return &v;
+  return nullptr;
+}
+
+ComponentSpec ComponentSpec::With(const std::string& name, const std::string& canonical) const {
+  ComponentSpec out = *this;
+  auto it = std::find_if(out.params.begin(), out.params.end(),
+                         [&](const auto& kv) { return kv.first == name; });
+  if (it != out.params.end()) {
+    it->second = canonical;
+  } else {
+    out.params.emplace_back(name, canonical);
+    std::sort(out.params.begin(), out.params.end());
+  }
+  return out;
+}
+
+std::string FormatComponent(const ComponentSpec& spec) {
+  auto params = spec.params;
+  std::sort(params.begin(), params.end());
+  std::string out = spec.stage;
+  for (const auto& [name, value] : params) out += LF_COMPONENT_SEPARATOR + name + "=" + value;
+  return out;
+}
+
+bool ParseComponent(const std::string& canonical, ComponentSpec* out, std::string* why) {
+  auto fail = [why](const std::string& reason) {
+    if (why) *why = reason;
+    return false;
+  };
+  ComponentSpec spec;
+  size_t start = 0;
+  bool first = true;
+  while (true) {
+    const size_t end = canonical.find(LF_COMPONENT_SEPARATOR, start);
+    const std::string part = canonical.substr(start, end - start);
+    if (first) {
+      const size_t slash = part.find('/');
+      if (slash == std::string::npos || slash == 0 || slash + 1 == part.size() ||
+          part.find('/', slash + 1) != std::string::npos)
+        return fail("expected a stage id KIND/NAME, got '" + part + "'");
+      spec.stage = part;
+      first = false;
+    } else {
+      const size_t eq = part.find('=');
+      if (eq == std::string::npos || eq == 0)
+        return fail("component parameter '" + part + "' is not name=value");
+      const std::string name = part.substr(0, eq);
+      if (spec.Find(name)) return fail("component parameter '" + name + "' given twice");
+      spec.params.emplace_back(name, part.substr(eq + 1));
+    }
+    if (end == std::string::npos) break;
+    start = end + 1;
+  }
+  std::sort(spec.params.begin(), spec.params.end());
+  *out = std::move(spec);
+  return true;
 }
 
 bool ParseBool(const std::string& s, bool* v) {
@@ -153,6 +227,13 @@ std::string ValidateParamValue(const ParamDecl& d, const std::string& value) {
       return "";
     }
     case LF_PARAM_STRING_LIST: return "";
+    // The component's own parameters are checked by the host against that
+    // stage's declarations; here only the form.
+    case LF_PARAM_COMPONENT: {
+      ComponentSpec spec;
+      std::string why;
+      return ParseComponent(value, &spec, &why) ? "" : why;
+    }
   }
   return "unknown parameter type";
 }

@@ -361,6 +361,115 @@ TEST(ParamSchema, NoOptions) {
   ExpectParamError([&] { schema.Parse({{"anything", "1"}}); }, {"unknown parameter 'anything'"});
 }
 
+// A library's options struct held by a stage's options and declared in place.
+struct LibraryOptions {
+  double spacing_s = 0.3;
+  double sigma_rad = DegreesToRadians(0.115);
+  bool align = true;
+};
+struct NestedOptions {
+  int rounds = 6;
+  LibraryOptions lib;
+  double turn_rad = DegreesToRadians(3.0);
+  static void Declare(ParamSchema<NestedOptions>& s) {
+    s.Add("rounds", &NestedOptions::rounds, "rounds").Min(1);
+    s.Add("spacing_s", &NestedOptions::lib, &LibraryOptions::spacing_s, "spacing").Range(1e-3, 100);
+    s.AddDegrees("sigma_deg", &NestedOptions::lib, &LibraryOptions::sigma_rad, "sigma").Min(1e-6);
+    s.Add("align", &NestedOptions::lib, &LibraryOptions::align, "align");
+    s.AddDegrees("turn_deg", &NestedOptions::turn_rad, "turn").Range(0, 360);
+  }
+  bool Check(std::string* why) const {
+    if (lib.align && lib.spacing_s > 10) return *why = "align needs spacing_s <= 10", false;
+    return true;
+  }
+};
+
+TEST(ParamSchema, NestedMembersAndDegreesHaveOneDefault) {
+  const ParamSchema<NestedOptions> schema;
+  const auto decls = schema.Decls();
+  ASSERT_EQ(decls.size(), 5u);
+  EXPECT_EQ(decls[1].name, "spacing_s");
+  EXPECT_EQ(decls[1].default_value, "0.3");
+  // Degrees shown as written, though the member holds radians.
+  EXPECT_EQ(decls[2].name, "sigma_deg");
+  EXPECT_EQ(decls[2].type, LF_PARAM_DOUBLE);
+  EXPECT_EQ(decls[2].default_value, "0.115");
+  EXPECT_EQ(decls[4].default_value, "3");
+  // Parsing the defaults gives back exactly the in-class values.
+  const NestedOptions d = schema.Parse({});
+  EXPECT_EQ(d.lib.spacing_s, 0.3);
+  EXPECT_EQ(d.lib.sigma_rad, DegreesToRadians(0.115));
+  EXPECT_EQ(d.turn_rad, DegreesToRadians(3.0));
+  const NestedOptions o = schema.Parse({{"spacing_s", "0.1"}, {"sigma_deg", "90"}, {"align", "false"}});
+  EXPECT_EQ(o.lib.spacing_s, 0.1);
+  EXPECT_NEAR(o.lib.sigma_rad, M_PI / 2, 1e-15);
+  EXPECT_FALSE(o.lib.align);
+  EXPECT_EQ(o.rounds, 6);
+  // Ranges apply to the value as written (degrees); the struct's Check sees nested members.
+  ExpectParamError([&] { schema.Parse({{"turn_deg", "361"}}); }, {"turn_deg", "out of range"});
+  ExpectParamError([&] { schema.Parse({{"spacing_s", "20"}}); }, {"align needs spacing_s <= 10"});
+  EXPECT_NO_THROW(schema.Parse({{"spacing_s", "20"}, {"align", "false"}}));
+}
+
+TEST(FormatDegrees, ShortestDegreesThatReadBackExactly) {
+  for (double deg : {0.115, 0.2, 3.0, 1.5, 0.005, 179.99, 1e-6}) {
+    const double rad = DegreesToRadians(deg);
+    const std::string s = FormatDegrees(rad);
+    double back = 0;
+    ASSERT_TRUE(ParseDouble(s, &back)) << s;
+    EXPECT_EQ(DegreesToRadians(back), rad) << s;
+    EXPECT_EQ(back, deg) << s;  // the value written in the code, not 0.11500000000000001
+  }
+  // A radian value no short decimal maps to: still reads back exactly.
+  const std::string s = FormatDegrees(0.002);
+  double back = 0;
+  ASSERT_TRUE(ParseDouble(s, &back));
+  EXPECT_EQ(DegreesToRadians(back), 0.002) << s;
+}
+
+struct ComponentOptions {
+  ComponentSpec backend{"registration/gicp"};
+  static void Declare(ParamSchema<ComponentOptions>& s) {
+    s.Add("backend", &ComponentOptions::backend, "back-end").Implements(LF_REGISTRATION_INTERFACE);
+  }
+};
+
+TEST(ParamSchema, ComponentValuesRoundTrip) {
+  const ParamSchema<ComponentOptions> schema;
+  const auto decls = schema.Decls();
+  ASSERT_EQ(decls.size(), 1u);
+  EXPECT_EQ(decls[0].type, LF_PARAM_COMPONENT);
+  EXPECT_EQ(decls[0].default_value, "registration/gicp");
+  EXPECT_EQ(decls[0].component_interface, LF_REGISTRATION_INTERFACE);
+  const std::string sep(1, LF_COMPONENT_SEPARATOR);
+  // Parameters come out sorted by name whatever the order given.
+  ComponentSpec spec("registration/pcl_gicp");
+  spec.params = {{"voxel_size", "0.2"}, {"max_iterations", "30"}};
+  const std::string canonical = FormatComponent(spec);
+  EXPECT_EQ(canonical, "registration/pcl_gicp" + sep + "max_iterations=30" + sep + "voxel_size=0.2");
+  const ComponentOptions o = schema.Parse({{"backend", canonical}});
+  EXPECT_EQ(o.backend.stage, "registration/pcl_gicp");
+  ASSERT_EQ(o.backend.params.size(), 2u);
+  EXPECT_EQ(*o.backend.Find("voxel_size"), "0.2");
+  EXPECT_EQ(o.backend.Find("nope"), nullptr);
+  // With(): one parameter replaced or added, the rest kept.
+  const ComponentSpec refined = o.backend.With("max_correspondence_distance", "0.3").With("voxel_size", "0.1");
+  EXPECT_EQ(FormatComponent(refined), "registration/pcl_gicp" + sep + "max_correspondence_distance=0.3" + sep +
+                                          "max_iterations=30" + sep + "voxel_size=0.1");
+  // A list value keeps its own separator inside a component value.
+  ComponentSpec with_list("registration/gicp");
+  with_list.params = {{"weights", JoinList({"1", "2"})}};
+  ComponentSpec back;
+  ASSERT_TRUE(ParseComponent(FormatComponent(with_list), &back));
+  EXPECT_EQ(back, with_list);
+  // The form is checked here; the parameters themselves by the host, against the component.
+  ExpectParamError([&] { schema.Parse({{"backend", "gicp"}}); }, {"parameter 'backend'", "KIND/NAME"});
+  ExpectParamError([&] { schema.Parse({{"backend", "registration/gicp" + sep + "voxel"}}); },
+                   {"parameter 'backend'", "'voxel' is not name=value"});
+  ExpectParamError([&] { schema.Parse({{"backend", "a/b" + sep + "x=1" + sep + "x=2"}}); }, {"given twice"});
+  EXPECT_STREQ(ParamTypeName(LF_PARAM_COMPONENT), "component");
+}
+
 TEST(ParamTypeName, Names) {
   EXPECT_STREQ(ParamTypeName(LF_PARAM_DOUBLE_LIST), "double list");
   EXPECT_STREQ(ParamTypeName(LF_PARAM_PATH), "path");

@@ -34,6 +34,7 @@ void PluginBuilder::AddStageInfo(LfStageInfo info, const StageMeta& meta,
   info.doc = Keep(meta.doc);
   info.flags = flags | meta.flags;
   info.component_interface = iface ? Keep(iface) : nullptr;
+  info.version = meta.version.empty() ? nullptr : Keep(meta.version);
 
   auto& specs = param_specs_.emplace_back();
   for (const auto& d : params) {
@@ -51,6 +52,7 @@ void PluginBuilder::AddStageInfo(LfStageInfo info, const StageMeta& meta,
     std::string choices;
     for (const auto& c : d.choices) choices += (choices.empty() ? "" : "|") + c;
     s.choices = d.choices.empty() ? nullptr : Keep(choices);
+    s.component_interface = d.component_interface.empty() ? nullptr : Keep(d.component_interface);
     specs.push_back(s);
   }
   info.params = specs.data();

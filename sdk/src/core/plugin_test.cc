@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstddef>
+
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -74,8 +76,10 @@ struct LinesOptions {
 class Lines : public PerItemStage<LinesOptions> {
  public:
   static StageMeta Meta() {
-    return {"test", "lines", "One file per item", {}, {{"out", "report", ""}},
+    StageMeta meta = {"test", "lines", "One file per item", {}, {{"out", "report", ""}},
             LF_STAGE_SERIAL_ITEMS};
+    meta.version = "2.0.1";  // its own, not the plugin's 1.2.3
+    return meta;
   }
   using PerItemStage::PerItemStage;
   std::vector<std::string> ListItems(RunContext&) override { return {"a", "b", "bad"}; }
@@ -206,6 +210,13 @@ TEST(PluginAdapter, WholeStageMetadata) {
   const LfParamSpec* text = by_name.at("text");
   EXPECT_EQ(text->flags & LF_PARAM_REQUIRED, LF_PARAM_REQUIRED);
   EXPECT_EQ(text->default_value, nullptr);
+}
+
+TEST(PluginAdapter, StageVersions) {
+  // A stage's own version (StageMeta::version); NULL for a stage without one.
+  EXPECT_STREQ(StageNamed("lines").version, "2.0.1");
+  EXPECT_EQ(StageNamed("echo").version, nullptr);
+  EXPECT_GE(StageNamed("echo").struct_size, offsetof(LfStageInfo, version) + sizeof(const char*));
 }
 
 TEST(PluginAdapter, PerItemAndComponentMetadata) {

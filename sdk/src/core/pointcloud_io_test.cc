@@ -59,7 +59,7 @@ TEST(PointCloudIo, RoundTripsAllFormats) {
 }
 
 TEST(PointCloudIo, ReadsTheSimulatorPcdLayout) {
-  // Same bytes as plugins/simulator/kapture_out.cc EncodePcd: packed
+  // Same bytes as plugins/source/simulator/kapture_out.cc EncodePcd: packed
   // float x y z intensity, uint16 ring, double time (26 bytes a point).
   std::string bytes =
       "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n"

@@ -198,4 +198,9 @@ FeatureArray MatchesToArray(const std::vector<Match>& matches) {
   return FeatureArray::From(DType::kFloat64, 3, v);
 }
 
+bool IsFeatureTypeName(const std::string& name) {
+  return !name.empty() && name.find_first_of("/\\,") == std::string::npos && name != "." &&
+         name != "..";
+}
+
 }  // namespace locforge::kapture

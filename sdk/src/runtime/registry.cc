@@ -76,13 +76,22 @@ std::vector<std::string> SplitChoices(const char* choices) {
   return out;
 }
 
-ParamDecl ReadParam(const LfParamSpec& p, const std::string& where) {
+// Sizes of the structs as ABI 1 first defined them: fields appended since are
+// read only when the plugin's struct_size covers them.
+constexpr size_t kParamSpecBaseSize = offsetof(LfParamSpec, component_interface);
+constexpr size_t kStageInfoBaseSize = offsetof(LfStageInfo, version);
+
+// True when a struct of `stride` bytes holds the field at `offset` of `size` bytes.
+bool Covers(uint32_t stride, size_t offset, size_t size) { return stride >= offset + size; }
+
+ParamDecl ReadParam(const LfParamSpec& p, uint32_t stride, const std::string& where) {
   if (!IsIdentifier(p.name))
     throw Refused{where + ": parameter name " + Quote(p.name) +
                   " must be non-empty lower-case [a-z0-9_]"};
   const std::string at = where + ": parameter '" + p.name + "'";
-  if (p.type > LF_PARAM_STRING_LIST)
-    throw Refused{at + ": unknown type " + std::to_string(p.type)};
+  if (p.type > LF_PARAM_COMPONENT)
+    throw Refused{at + ": unknown type " + std::to_string(p.type) +
+                  " (a newer SDK's; update this host)"};
   ParamDecl d;
   d.name = p.name;
   d.type = static_cast<LfParamType>(p.type);
@@ -99,6 +108,10 @@ ParamDecl ReadParam(const LfParamSpec& p, const std::string& where) {
     for (const auto& c : d.choices)
       if (c.empty()) throw Refused{at + ": enum without choices (or an empty choice)"};
   }
+  if (d.type == LF_PARAM_COMPONENT &&
+      Covers(stride, offsetof(LfParamSpec, component_interface), sizeof(p.component_interface)) &&
+      p.component_interface != nullptr)
+    d.component_interface = p.component_interface;
   if (!d.required()) {
     if (p.default_value == nullptr)
       throw Refused{at + ": no default value and not marked LF_PARAM_REQUIRED"};
@@ -150,8 +163,8 @@ void CheckFunctions(const LfStageInfo& s, const std::string& where) {
     throw Refused{where + ": neither runnable (LF_STAGE_RUNNABLE) nor a component"};
 }
 
-std::unique_ptr<StageEntry> ReadStage(const LfStageInfo& s, const LoadedPlugin* plugin,
-                                      uint32_t index) {
+std::unique_ptr<StageEntry> ReadStage(const LfStageInfo& s, uint32_t stage_stride,
+                                      const LoadedPlugin* plugin, uint32_t index) {
   const std::string at = "stage #" + std::to_string(index);
   if (!IsIdentifier(s.kind))
     throw Refused{at + ": kind " + Quote(s.kind) + " must be non-empty lower-case [a-z0-9_]"};
@@ -163,11 +176,18 @@ std::unique_ptr<StageEntry> ReadStage(const LfStageInfo& s, const LoadedPlugin* 
   entry->plugin = plugin;
   const std::string where = "stage '" + entry->id + "'";
   CheckFunctions(s, where);
+  entry->version = plugin->info->version;
+  if (Covers(stage_stride, offsetof(LfStageInfo, version), sizeof(s.version)) &&
+      s.version != nullptr) {
+    if (*s.version == '\0') throw Refused{where + ": version is empty (NULL: the plugin's)"};
+    entry->version = s.version;
+    entry->own_version = true;
+  }
 
-  const uint32_t stride = StrideOf(s.params, s.num_params, sizeof(LfParamSpec), where + ": parameter");
+  const uint32_t stride = StrideOf(s.params, s.num_params, kParamSpecBaseSize, where + ": parameter");
   std::set<std::string> names;
   for (uint32_t i = 0; i < s.num_params; ++i) {
-    entry->params.push_back(ReadParam(*Element(s.params, stride, i), where));
+    entry->params.push_back(ReadParam(*Element(s.params, stride, i), stride, where));
     if (!names.insert(entry->params.back().name).second)
       throw Refused{where + ": parameter '" + entry->params.back().name + "' declared twice"};
   }
@@ -349,10 +369,10 @@ bool Registry::LoadFile(const fs::path& file) {
     if (!info->version) throw Refused{"plugin version is NULL"};
     plugin->info = info;
     const uint32_t stride =
-        StrideOf(info->stages, info->num_stages, sizeof(LfStageInfo), "LfStageInfo");
+        StrideOf(info->stages, info->num_stages, kStageInfoBaseSize, "LfStageInfo");
     std::set<std::string> ids;
     for (uint32_t i = 0; i < info->num_stages; ++i) {
-      stages.push_back(ReadStage(*Element(info->stages, stride, i), plugin.get(), i));
+      stages.push_back(ReadStage(*Element(info->stages, stride, i), stride, plugin.get(), i));
       if (!ids.insert(stages.back()->id).second)
         throw Refused{"stage '" + stages.back()->id + "' declared twice"};
     }

@@ -74,6 +74,7 @@ std::string ValidValue(const ParamDecl& d) {
     case LF_PARAM_STRING: return "x";
     case LF_PARAM_PATH: return ".";
     case LF_PARAM_ENUM: return d.choices.empty() ? "" : d.choices.front();
+    case LF_PARAM_COMPONENT: return "kind/name";
     default: return "";  // an empty list
   }
 }
@@ -107,6 +108,11 @@ std::vector<std::pair<std::string, std::string>> InvalidValues(const ParamDecl& 
       out.push_back({"not_a_number", "a list with a non-numeric element"});
       if (d.has_min) out.push_back({FormatDouble(std::floor(d.min_value - step_min)), "a list element below the minimum"});
       if (d.has_max) out.push_back({FormatDouble(std::ceil(d.max_value + step_max)), "a list element above the maximum"});
+      break;
+    case LF_PARAM_COMPONENT:
+      out.push_back({"no_stage_id", "not a KIND/NAME component"});
+      out.push_back({d.default_value + LF_COMPONENT_SEPARATOR + "no_equals_sign",
+                     "a component parameter that is not name=value"});
       break;
     default: break;  // any string is a valid string
   }
@@ -336,6 +342,21 @@ Report CheckDeterminism(const runtime::Registry& registry, const DeterminismCase
     r.Note("outputs kept in " + scratch.string());
   }
   return r;
+}
+
+runtime::RunResult RunStage(const runtime::Registry& registry, const std::string& stage_id,
+                            const std::vector<std::pair<std::string, std::string>>& params,
+                            const std::vector<runtime::InputArtifact>& inputs, const fs::path& output_dir,
+                            int threads) {
+  const runtime::StageEntry* stage = registry.Find(stage_id);
+  if (!stage) throw Error("no stage " + stage_id + " in the registry");
+  runtime::StageInstance instance(*stage, runtime::CheckStageParams(*stage, params));
+  runtime::RunOptions run;
+  run.workspace = output_dir.parent_path();
+  run.output_dir = output_dir;
+  run.inputs = inputs;
+  run.threads = threads;
+  return instance.Run(run);
 }
 
 }  // namespace locforge::testkit

@@ -2,6 +2,7 @@
 //   thirdparty/text_files  writes `copies` text files holding `text`
 //   thirdparty/word_count  counts the words of every *.txt of its input and
 //                          writes counts.tsv (word, count; most frequent first)
+//                          and counts.{svg,png} (count by rank, locforge::plot)
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -12,6 +13,7 @@
 
 #include "locforge/error.h"
 #include "locforge/fs.h"
+#include "locforge/plot.h"
 #include "locforge/plugin.h"
 
 namespace thirdparty {
@@ -56,7 +58,7 @@ class WordCount : public locforge::Stage<WordCountOptions> {
   static locforge::StageMeta Meta() {
     return {"thirdparty", "word_count", "Counts the words of every .txt file of its input",
             {{"texts", "thirdparty.texts", "folder of .txt files"}},
-            {{"report", "report", "counts.tsv: word<TAB>count, most frequent first"}}};
+            {{"report", "report", "counts.tsv: word<TAB>count, most frequent first; counts.{svg,png}"}}};
   }
   using Stage::Stage;
   void Run(locforge::RunContext& ctx) override {
@@ -88,10 +90,22 @@ class WordCount : public locforge::Stage<WordCountOptions> {
     for (const auto& [word, n] : sorted) report += word + "\t" + std::to_string(n) + "\n";
     report += "total\t" + std::to_string(total) + "\n";
     locforge::WriteFileAtomic(ctx.output_dir() / "counts.tsv", report);
+
+    locforge::plot::Figure figure;
+    figure.title = "Words by rank";
+    figure.x_label = "rank";
+    figure.y_label = "count";
+    figure.series.push_back({"words", {}, {}, "", true});
+    for (size_t i = 0; i < sorted.size(); ++i) {
+      figure.series[0].x.push_back(static_cast<double>(i + 1));
+      figure.series[0].y.push_back(static_cast<double>(sorted[i].second));
+    }
+    for (const char* extension : {".svg", ".png"})
+      locforge::plot::WriteFigure(figure, (ctx.output_dir() / "counts").string() + extension);
   }
 };
 
 }  // namespace thirdparty
 
-LOCFORGE_PLUGIN("hello_plugin", "0.3.0", "Out-of-tree example: text files and word counts",
+LOCFORGE_PLUGIN("hello_plugin", "0.4.0", "Out-of-tree example: text files and word counts",
                 thirdparty::TextFiles, thirdparty::WordCount)

@@ -39,8 +39,10 @@ class Kabsch : public locforge::Component<KabschOptions> {
  public:
   static constexpr const char* kInterface = LF_REGISTRATION_INTERFACE;
   static StageMeta Meta() {
-    return {"registration", "kabsch_test",
-            "Closed-form point-to-point alignment with known correspondences (test)", {}, {}};
+    StageMeta meta{"registration", "kabsch_test",
+                   "Closed-form point-to-point alignment with known correspondences (test)", {}, {}};
+    meta.version = "2.0.0";
+    return meta;
   }
   using Component::Component;
 
@@ -106,13 +108,21 @@ class Kabsch : public locforge::Component<KabschOptions> {
   }
 };
 
+locforge::ComponentSpec MinPoints(const char* stage) {
+  locforge::ComponentSpec spec(stage);
+  spec.params = {{"min_points", "3"}};
+  return spec;
+}
+
 struct AlignCheckOptions {
-  std::string backend = "registration/kabsch_test";  // Component stage used.
+  // Component stage used, with its parameters.
+  locforge::ComponentSpec backend = MinPoints("registration/kabsch_test");
   int points = 200;                                  // Points in the cloud.
   std::vector<double> rotation = {0.3, -0.2, 0.5};     // Euler x, y, z (radians), R = Rz Ry Rx.
   std::vector<double> translation = {1.0, -2.0, 0.5};  // Metres.
   static void Declare(ParamSchema<AlignCheckOptions>& s) {
-    s.Add("backend", &AlignCheckOptions::backend, "Registration component stage id");
+    s.Add("backend", &AlignCheckOptions::backend, "Registration component and its parameters")
+        .Implements(LF_REGISTRATION_INTERFACE);
     s.Add("points", &AlignCheckOptions::points, "Points in the synthetic cloud").Range(3, 1000000);
     s.Add("rotation", &AlignCheckOptions::rotation, "Euler angles x, y, z in radians");
     s.Add("translation", &AlignCheckOptions::translation, "Translation in metres");
@@ -159,10 +169,12 @@ class AlignCheck : public locforge::Stage<AlignCheckOptions> {
     const LfRunContext* c = ctx.raw();
     LfError err{};
     err.struct_size = sizeof(err);
-    const LfParam params[] = {{"min_points", "3"}};
+    std::vector<LfParam> params;
+    for (const auto& [name, value] : o.backend.params) params.push_back({name.c_str(), value.c_str()});
     const LfStageInfo* info = nullptr;
-    void* component = c->create_component(c->host, o.backend.c_str(), params, 1, &info, &err);
-    if (component == nullptr) throw locforge::Error("cannot create " + o.backend + ": " + err.message);
+    void* component = c->create_component(c->host, o.backend.stage.c_str(), params.data(),
+                                          static_cast<uint32_t>(params.size()), &info, &err);
+    if (component == nullptr) throw locforge::Error("cannot create " + o.backend.stage + ": " + err.message);
     struct Release {  // destroys the component on every path out
       const LfRunContext* c;
       const LfStageInfo* info;
@@ -171,7 +183,7 @@ class AlignCheck : public locforge::Stage<AlignCheckOptions> {
     } release{c, info, component};
     if (info == nullptr || info->component_interface == nullptr ||
         std::string(info->component_interface) != LF_REGISTRATION_INTERFACE)
-      throw locforge::Error(o.backend + " is not a " LF_REGISTRATION_INTERFACE " component");
+      throw locforge::Error(o.backend.stage + " is not a " LF_REGISTRATION_INTERFACE " component");
     const auto* table = static_cast<const LfRegistrationInterface*>(info->component(component));
     LfPointCloudView src{sizeof(LfPointCloudView), static_cast<uint64_t>(o.points), source.data(), 12,
                          nullptr, 0, nullptr, 0};

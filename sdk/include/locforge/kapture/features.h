@@ -39,6 +39,10 @@ enum class DType {
 // "single" (float32), "int" (int64), "ubyte"/"byte", and "np."/"numpy."
 // prefixes. Returns false when unknown.
 bool ParseDType(const std::string& name, DType* dtype);
+
+// True for a usable feature type name, i.e. one folder under
+// reconstruction/<kind>/ (not empty, no '/', '\\' or ',', not "." or "..").
+bool IsFeatureTypeName(const std::string& name);
 // The canonical numpy name ("float32").
 const char* DTypeName(DType dtype);
 size_t DTypeSize(DType dtype);

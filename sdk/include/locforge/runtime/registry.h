@@ -36,6 +36,10 @@ struct PortDecl {
 
 struct StageEntry {
   std::string id;  // "kind/name"
+  // The version keying the stage's results: its own (LfStageInfo::version)
+  // when it declares one, else its plugin's.
+  std::string version;
+  bool own_version = false;
   const LfStageInfo* info = nullptr;
   const LoadedPlugin* plugin = nullptr;
   std::vector<ParamDecl> params;  // the C++ form of info->params

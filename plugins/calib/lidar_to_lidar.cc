@@ -1,0 +1,129 @@
+// calib/lidar_to_lidar: extrinsic of a second LiDAR w.r.t. the first by
+// registration on their shared field of view, accumulated over several
+// scans. Target: reference-LiDAR points of `scans` scans, undistorted into the
+// platform frame at the first scan's time (odometry, paper eq. 1). Source:
+// the other LiDAR's nearest scans, undistorted into its own frame at that
+// time with the current extrinsic. Align(source, target) gives T_platform_lidar;
+// repeated `iterations` times (the undistortion depends on the extrinsic).
+#include <cmath>
+#include <sstream>
+
+#include "cloud.h"
+#include "locforge/kapture/io.h"
+#include "locforge/kapture/kapture.h"
+#include "locforge/registration.h"
+#include "lidar_stages.h"
+
+namespace locforge::lidar {
+
+bool LidarToLidarOptions::Check(std::string* why) const {
+  if (initial_offset.size() == 6) return true;
+  if (why) *why = "initial_offset: expected 6 numbers (x y z m, roll pitch yaw deg)";
+  return false;
+}
+
+void LidarToLidar::Run(RunContext& ctx) {
+  const LidarToLidarOptions& o = options();
+  const fs::path dataset = RecordingOf(ctx, o.dataset, "calib/lidar_to_lidar");
+  kapture::Kapture k(dataset);
+  const WheelOdometry odometry = WheelOdometry::FromKapture(dataset, o.Wheels());
+  std::vector<std::string> lidars;
+  for (const auto* s : k.sensors().OfType(kapture::kSensorLidar)) lidars.push_back(s->id);
+  if (lidars.size() < 2) throw InputError((dataset / kapture::layout::kSensors).string(), 0, "sensor_type", "fewer than 2 lidars");
+  const std::string ref_id = o.reference_lidar.empty() ? lidars[0] : o.reference_lidar;
+  const std::string other_id = o.lidar.empty() ? (lidars[0] == ref_id ? lidars[1] : lidars[0]) : o.lidar;
+  auto Extrinsic = [&](const std::string& id) {
+    const kapture::Rig* rig = k.rigs().RigOf(id);
+    const kapture::RigSensor* rs = rig ? rig->Find(id) : nullptr;
+    return rs ? rs->sensor_from_rig.Inverse() : Pose();
+  };
+  const Pose T_platform_ref = Extrinsic(ref_id);
+  const Pose T_platform_initial = Extrinsic(other_id);
+  const auto& off = o.initial_offset;
+  const Eigen::Quaterniond dq = Eigen::AngleAxisd(off[5] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                                Eigen::AngleAxisd(off[4] * M_PI / 180, Eigen::Vector3d::UnitY()) *
+                                Eigen::AngleAxisd(off[3] * M_PI / 180, Eigen::Vector3d::UnitX());
+  Pose T_platform_other = Pose(dq, Eigen::Vector3d(off[0], off[1], off[2])) * T_platform_initial;
+
+  std::map<std::string, std::vector<kapture::DataRecord>> by_lidar;
+  for (const auto& r : k.ReadDataRecords(kapture::kSensorLidar)) by_lidar[r.device_id].push_back(r);
+  const auto& refs = by_lidar[ref_id];
+  const auto& others = by_lidar[other_id];
+  if (refs.empty() || others.empty()) throw InputError(dataset.string(), 0, "records_lidar", "no scans of " + ref_id + " or " + other_id);
+  // Consecutive scans from the middle of the recording, one odometry segment.
+  const size_t first = refs.size() / 2;
+  const double t0 = static_cast<double>(refs[first].timestamp);
+  std::vector<std::pair<Cloud, double>> ref_scans, other_scans;  // cloud, record time
+  for (size_t i = first; i < refs.size() && ref_scans.size() < static_cast<size_t>(o.scans); ++i) {
+    if (!odometry.SameSegment(t0, refs[i].timestamp)) break;
+    ref_scans.emplace_back(ReadScan(k.ExistingRecordDataPath(refs[i].path)), static_cast<double>(refs[i].timestamp));
+    const kapture::DataRecord* best = nullptr;
+    for (const auto& r : others)
+      if (!best || std::abs(r.timestamp - refs[i].timestamp) < std::abs(best->timestamp - refs[i].timestamp)) best = &r;
+    if (best && odometry.SameSegment(t0, best->timestamp))
+      other_scans.emplace_back(ReadScan(k.ExistingRecordDataPath(best->path)), static_cast<double>(best->timestamp));
+  }
+  // Points of `scan` (sensor frame, per-point times) into frame F at t0, where
+  // F = platform for the reference, the other LiDAR (current extrinsic) otherwise.
+  auto Undistort = [&](const Cloud& scan, double t_record, const Pose& T_platform_sensor, bool into_sensor) {
+    Cloud out;
+    const Pose back = into_sensor ? T_platform_sensor.Inverse() : Pose();
+    for (size_t i = 0; i < scan.size(); ++i) {
+      const float range = scan.points[i].norm();
+      if (range < o.min_range || range > o.max_range) continue;
+      const double t = t_record + (scan.has_times() ? scan.times[i] : 0.0) / o.seconds_per_unit;
+      const Pose T = back * odometry.Relative(t0, t) * T_platform_sensor;
+      out.points.push_back((T * scan.points[i].cast<double>()).cast<float>());
+    }
+    return out;
+  };
+  Cloud target;
+  for (const auto& [scan, t] : ref_scans) {
+    const Cloud c = Undistort(scan, t, T_platform_ref, false);
+    target.points.insert(target.points.end(), c.points.begin(), c.points.end());
+  }
+  target = VoxelDownsample(target, o.voxel);
+  std::vector<std::pair<std::string, std::string>> params;
+  for (const auto& kv : o.registration_params) {
+    const size_t eq = kv.find('=');
+    params.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+  }
+  const RegistrationBackend backend = RegistrationBackend::Create(ctx, o.registration, params);
+  RegistrationResult r;
+  for (int it = 0; it < o.iterations; ++it) {
+    Cloud source;
+    for (const auto& [scan, t] : other_scans) {
+      const Cloud c = Undistort(scan, t, T_platform_other, true);
+      source.points.insert(source.points.end(), c.points.begin(), c.points.end());
+    }
+    source = VoxelDownsample(source, o.voxel);
+    r = backend.Align(source, target, T_platform_other, ctx.threads());
+    if (!r.converged) throw Error("calib/lidar_to_lidar: registration did not converge");
+    T_platform_other = r.T_target_source;
+  }
+  // Outputs: rigs.txt with the calibrated extrinsic, calib.json.
+  kapture::Rigs rigs;
+  for (const auto& rig : k.rigs().list())
+    for (auto s : rig.sensors) {
+      if (s.sensor_id == other_id) {
+        s.sensor_from_rig = T_platform_other.Inverse();
+        s.raw_rotation.reset();
+      }
+      rigs.Add(rig.id, s);
+    }
+  kapture::WriteRigs(ctx.output_dir() / kapture::layout::kRigs, rigs);
+  kapture::WriteSensors(ctx.output_dir() / kapture::layout::kSensors, k.sensors());
+  const Pose change = T_platform_other * T_platform_initial.Inverse();
+  std::ostringstream j;
+  j.precision(10);
+  j << "{\n  \"reference_lidar\": \"" << ref_id << "\",\n  \"lidar\": \"" << other_id << "\",\n  \"scans\": "
+    << ref_scans.size() << ",\n  \"T_platform_lidar\": {\"qw\": " << T_platform_other.q.w() << ", \"qx\": "
+    << T_platform_other.q.x() << ", \"qy\": " << T_platform_other.q.y() << ", \"qz\": " << T_platform_other.q.z()
+    << ", \"tx\": " << T_platform_other.t.x() << ", \"ty\": " << T_platform_other.t.y() << ", \"tz\": "
+    << T_platform_other.t.z() << "},\n  \"change_from_rigs_translation_m\": " << change.t.norm()
+    << ",\n  \"change_from_rigs_rotation_deg\": " << RotationAngleDeg(change.q, Eigen::Quaterniond::Identity())
+    << ",\n  \"inlier_fraction\": " << r.inlier_fraction << ",\n  \"final_error\": " << r.final_error << "\n}\n";
+  WriteFileAtomic(ctx.output_dir() / "calib.json", j.str());
+}
+
+}  // namespace locforge::lidar

@@ -1,0 +1,10 @@
+// The examples plugin: the SDK's example stages in one plugin, a whole
+// small example of one (example/image_stats here, the sources
+// ../source/synthetic_images.cc and ../source/image_list.cc).
+#include "example_stages.h"
+#include "locforge/plugin.h"
+
+LOCFORGE_PLUGIN("examples", "1.0.0", "Example stages: synthetic images, image folder import, image statistics",
+                locforge::examples::SyntheticImages,
+                locforge::examples::ImageList,
+                locforge::examples::ImageStats)

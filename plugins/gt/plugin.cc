@@ -1,0 +1,11 @@
+// The stages of kind gt; each stage's version keys its cached results.
+#include "locforge/plugin.h"
+
+namespace locforge::sfm_gt {
+LOCFORGE_DECLARE_STAGE(AddImages);
+LOCFORGE_DECLARE_STAGE(AddSplineBA);
+}  // namespace locforge::sfm_gt
+
+LOCFORGE_PLUGIN("gt", "1.0.0", "SfM half of the ground truth: images with LiDAR poses, spline bundle adjustment outer loop",
+                locforge::Exported<locforge::sfm_gt::AddImages>,
+                locforge::Exported<locforge::sfm_gt::AddSplineBA>)

@@ -1,0 +1,293 @@
+// localizer/pnp: in-process absolute pose per query (or per rig of query
+// cameras at one timestamp) from query-to-map matches and the map's 3D points.
+#include <chrono>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <unordered_map>
+
+#include "absolute_pose.h"
+#include "locforge/kapture/kapture.h"
+#include "locforge/kapture/rigs.h"
+#include "locforge/plugin.h"
+
+namespace locforge::localization {
+namespace {
+
+namespace kp = locforge::kapture;
+
+struct PnPOptions {
+  double max_error_px = 12.0;  // RANSAC inlier threshold in pixels.
+  double confidence = 0.9999;  // RANSAC stopping confidence.
+  int min_iterations = 100;    // RANSAC iterations at least.
+  int max_iterations = 10000;  // RANSAC iterations at most.
+  int min_inliers = 10;        // Fewer inliers: the query fails.
+  double min_inlier_ratio = 0.0;  // Lower inlier ratio: the query fails.
+  double cauchy_scale_px = 1.0;   // Cauchy loss scale of the refinement.
+  int64_t seed = 0;               // RANSAC seed (deterministic).
+  bool rig_queries = false;       // Query cameras of one rig at one timestamp share a pose.
+  std::string keypoints_type;     // Query keypoints type; "" = the only one.
+
+  static void Declare(ParamSchema<PnPOptions>& s) {
+    s.Add("max_error_px", &PnPOptions::max_error_px, "RANSAC inlier threshold, pixels").Min(0.01);
+    s.Add("confidence", &PnPOptions::confidence, "RANSAC stopping confidence").Range(0.5, 0.999999);
+    s.Add("min_iterations", &PnPOptions::min_iterations, "RANSAC iterations at least").Min(1);
+    s.Add("max_iterations", &PnPOptions::max_iterations, "RANSAC iterations at most").Min(1);
+    s.Add("min_inliers", &PnPOptions::min_inliers, "fewer inliers: the query fails").Min(3);
+    s.Add("min_inlier_ratio", &PnPOptions::min_inlier_ratio, "lower inlier ratio: the query fails").Range(0, 1);
+    s.Add("cauchy_scale_px", &PnPOptions::cauchy_scale_px, "Cauchy loss scale of the Ceres refinement, pixels").Min(1e-3);
+    s.Add("seed", &PnPOptions::seed, "RANSAC random seed").Min(0);
+    s.Add("rig_queries", &PnPOptions::rig_queries, "query cameras of one rig at one timestamp share one rig pose");
+    s.Add("keypoints_type", &PnPOptions::keypoints_type, "query keypoints type; empty = the only one");
+  }
+  bool Check(std::string* why) const { return ToRansac().Check(why); }
+  RansacOptions ToRansac() const {
+    RansacOptions r;
+    r.max_error_px = max_error_px;
+    r.confidence = confidence;
+    r.min_iterations = min_iterations;
+    r.max_iterations = max_iterations;
+    r.min_inliers = min_inliers;
+    r.min_inlier_ratio = min_inlier_ratio;
+    r.seed = static_cast<uint64_t>(seed);
+    r.refine.cauchy_scale_px = cauchy_scale_px;
+    return r;
+  }
+};
+
+struct QueryImage {
+  Timestamp timestamp = 0;
+  std::string device;
+  std::string image;
+};
+
+// One item: a query image, or the images of one rig at one timestamp.
+struct QueryItem {
+  std::string device;  // trajectory device: the camera, or the rig
+  Timestamp timestamp = 0;
+  std::vector<QueryImage> images;
+};
+
+std::string FeatureTypeOf(const kp::Kapture& k, kp::FeatureKind kind, const std::string& wanted,
+                          const std::string& what) {
+  if (!wanted.empty()) return wanted;
+  const auto sets = k.FeatureSets(kind);
+  if (sets.size() != 1)
+    throw InputError(k.root().string(), 0, what,
+                     std::to_string(sets.size()) + " feature types found; set keypoints_type");
+  return sets.front().type;
+}
+
+class PnPLocalizer : public PerItemStage<PnPOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta = {"localizer",
+            "pnp",
+            "P3P/EPnP LO-RANSAC + Cauchy-robust Ceres refinement per query (fixed intrinsics, "
+            "optional rig queries); failed queries are listed in failures.txt, never guessed",
+            {{"query", "kapture.dataset", "query sensors, rigs and records_camera"},
+             {"query_features", "kapture.local_features", "query keypoints"},
+             {"map", "kapture.reconstruction", "map points3d + observations"},
+             {"matches", "kapture.matches", "query-to-map matches"}},
+            {{"trajectories", "kapture.trajectories",
+              "estimated query poses (+ failures.txt, localization_stats.csv)"}}};
+    meta.version = "1.1.0";
+    return meta;
+  }
+  using PerItemStage::PerItemStage;
+
+  std::vector<std::string> ListItems(RunContext& ctx) override {
+    Load(ctx);
+    std::vector<std::string> out;
+    for (const auto& [name, item] : items_) out.push_back(name);
+    return out;
+  }
+
+  void ProcessItem(RunContext& ctx, const std::string& name) override {
+    Load(ctx);
+    const QueryItem& item = items_.at(name);
+    const auto start = std::chrono::steady_clock::now();
+    std::vector<Correspondence> cs;
+    std::vector<RigCamera> cameras;
+    for (const auto& image : item.images) {
+      const kp::Sensor* sensor = query_->sensors().Find(image.device);
+      if (!sensor || !sensor->camera)
+        throw InputError("sensors/sensors.txt", 0, image.device, "query camera not found");
+      const Camera& camera = *sensor->camera;
+      RigCamera rc;
+      rc.focal = 0.5 * (camera.fx() + camera.fy());
+      if (item.device != image.device) {
+        const kp::Rig* rig = query_->rigs().Find(item.device);
+        rc.camera_from_rig = rig->Find(image.device)->sensor_from_rig;
+      }
+      const int camera_index = static_cast<int>(cameras.size());
+      cameras.push_back(rc);
+      AddCorrespondences(image.image, camera, camera_index, &cs);
+    }
+    RansacOptions ransac = options().ToRansac();
+    ransac.seed ^= std::hash<std::string>{}(name);
+    AbsolutePoseResult r = EstimateAbsolutePose(cs, cameras, ransac);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::ostringstream out;
+    out.precision(17);
+    if (r.success) {
+      const Pose& p = r.rig_from_world;
+      out << "ok " << p.q.w() << " " << p.q.x() << " " << p.q.y() << " " << p.q.z() << " "
+          << p.t.x() << " " << p.t.y() << " " << p.t.z();
+    } else {
+      out << "failed " << r.failure;
+    }
+    out << "\n" << cs.size() << " " << r.num_inliers << " " << r.iterations << " " << seconds << "\n";
+    WriteFileAtomic(ResultFile(ctx, name), out.str());
+  }
+
+  void Finalize(RunContext& ctx) override {
+    Load(ctx);
+    kp::Trajectories trajectories;
+    std::ostringstream failures, stats;
+    failures << "# item, timestamp, device_id, reason\n";
+    stats << "item,status,correspondences,inliers,iterations,seconds\n";
+    int ok = 0;
+    for (const auto& [name, item] : items_) {
+      std::istringstream in(ReadFile(ResultFile(ctx, name)));
+      std::string status;
+      in >> status;
+      if (status == "ok") {
+        double v[7];
+        for (double& x : v) in >> x;
+        trajectories.Set(item.timestamp, item.device,
+                         Pose(Eigen::Quaterniond(v[0], v[1], v[2], v[3]), {v[4], v[5], v[6]}));
+        ++ok;
+      } else {
+        std::string reason;
+        std::getline(in, reason);
+        failures << name << ", " << item.timestamp << ", " << item.device << "," << reason << "\n";
+      }
+      std::string counts;
+      std::getline(in >> std::ws, counts);
+      for (char& c : counts) c = c == ' ' ? ',' : c;
+      stats << name << "," << status << "," << counts << "\n";
+    }
+    const fs::path out = ctx.output_dir();
+    fs::create_directories(out / "sensors");
+    kp::WriteSensors(out / kp::layout::kSensors, query_->sensors());
+    if (!query_->rigs().empty()) kp::WriteRigs(out / kp::layout::kRigs, query_->rigs());
+    kp::WriteTrajectories(out / kp::layout::kTrajectories, trajectories);
+    WriteFileAtomic(out / "failures.txt", failures.str());
+    WriteFileAtomic(out / "localization_stats.csv", stats.str());
+    ctx.Info("localized " + std::to_string(ok) + " of " + std::to_string(items_.size()) +
+             " queries");
+  }
+
+ private:
+  static fs::path ResultFile(RunContext& ctx, const std::string& name) {
+    return SafeJoin(ctx.output_dir() / "results", name + ".txt");
+  }
+
+  void AddCorrespondences(const std::string& image, const Camera& camera, int camera_index,
+                          std::vector<Correspondence>* cs) {
+    kp::FeatureArray keypoints;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      keypoints = features_->ReadKeypoints(keypoints_type_, image);
+    }
+    auto pairs = map_images_of_.find(image);
+    if (pairs == map_images_of_.end()) return;
+    for (const std::string& map_image : pairs->second) {
+      auto observed = observations_.find(map_image);
+      if (observed == observations_.end()) continue;
+      std::vector<kp::Match> matches;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        matches = matches_->ReadMatches(matches_type_, image, map_image);
+      }
+      for (const kp::Match& m : matches) {
+        const int64_t q = static_cast<int64_t>(m.index1);
+        auto point = observed->second.find(static_cast<int64_t>(m.index2));
+        if (point == observed->second.end()) continue;
+        if (q < 0 || q >= keypoints.rows)
+          throw InputError(matches_->MatchesPath(matches_type_, image, map_image).string(), 0,
+                           "index", "keypoint index " + std::to_string(q) + " out of range");
+        const Eigen::Vector2d pixel(keypoints.At(q, 0), keypoints.At(q, 1));
+        for (const int64_t id : point->second) {
+          Correspondence c;
+          c.normalized = camera.Unproject(pixel).hnormalized();
+          const kp::Point3d& p = points_[id];
+          c.world = Eigen::Vector3d(p.x, p.y, p.z);
+          c.camera = camera_index;
+          cs->push_back(c);
+        }
+      }
+    }
+  }
+
+  void Load(RunContext& ctx) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (loaded_) return;
+    query_ = std::make_unique<kp::Kapture>(ctx.Input("query"));
+    // Kapture parses sensors/rigs lazily and is not thread-safe: parse them
+    // here, under the lock, before ProcessItem reads them from several threads.
+    query_->sensors();
+    query_->rigs();
+    features_ = std::make_unique<kp::Kapture>(ctx.Input("query_features"));
+    matches_ = std::make_unique<kp::Kapture>(ctx.Input("matches"));
+    keypoints_type_ = FeatureTypeOf(*features_, kp::FeatureKind::kKeypoints,
+                                    options().keypoints_type, "keypoints_type");
+    const auto types = matches_->MatchesTypes();
+    if (types.empty()) throw InputError(ctx.Input("matches").string(), 0, "matches", "no matches");
+    matches_type_ = std::find(types.begin(), types.end(), keypoints_type_) != types.end()
+                        ? keypoints_type_ : types.front();
+    // Queries.
+    std::map<std::pair<Timestamp, std::string>, QueryItem> by_rig;
+    for (const auto& r : query_->ReadDataRecords(kp::kSensorCamera)) {
+      QueryImage image{r.timestamp, r.device_id, r.path};
+      const kp::Rig* rig = options().rig_queries ? query_->rigs().RigOf(r.device_id) : nullptr;
+      if (rig) {
+        QueryItem& item = by_rig[{r.timestamp, rig->id}];
+        item.device = rig->id;
+        item.timestamp = r.timestamp;
+        item.images.push_back(image);
+      } else {
+        items_[r.path] = QueryItem{r.device_id, r.timestamp, {image}};
+      }
+    }
+    for (auto& [key, item] : by_rig)
+      items_["rig_" + item.device + "/" + std::to_string(key.first)] = std::move(item);
+    std::unordered_map<std::string, bool> is_query;
+    for (const auto& [name, item] : items_)
+      for (const auto& image : item.images) is_query[image.image] = true;
+    // Query-to-map pairs.
+    for (const auto& [a, b] : matches_->MatchPairs(matches_type_)) {
+      if (is_query.count(a) && !is_query.count(b)) map_images_of_[a].push_back(b);
+      if (is_query.count(b) && !is_query.count(a)) map_images_of_[b].push_back(a);
+    }
+    // Map points and who observes them.
+    kp::Kapture map(ctx.Input("map"));
+    points_ = map.points3d();
+    for (const auto& entry : map.observations()) {
+      if (entry.point3d_id < 0 || entry.point3d_id >= static_cast<int64_t>(points_.size()))
+        throw InputError("reconstruction/observations.txt", 0, "point3d_id",
+                         "point " + std::to_string(entry.point3d_id) + " not in points3d.txt");
+      for (const auto& [image, feature] : entry.features)
+        observations_[image][feature].push_back(entry.point3d_id);
+    }
+    ctx.Info(std::to_string(items_.size()) + " queries, " + std::to_string(points_.size()) +
+             " map points, " + std::to_string(map_images_of_.size()) + " queries with matches");
+    loaded_ = true;
+  }
+
+  std::mutex mutex_;
+  bool loaded_ = false;
+  std::unique_ptr<kp::Kapture> query_, features_, matches_;
+  std::string keypoints_type_, matches_type_;
+  std::map<std::string, QueryItem> items_;
+  std::unordered_map<std::string, std::vector<std::string>> map_images_of_;
+  std::vector<kp::Point3d> points_;
+  std::unordered_map<std::string, std::unordered_map<int64_t, std::vector<int64_t>>> observations_;
+};
+
+}  // namespace
+LOCFORGE_EXPORT_STAGE(AddPnP, PnPLocalizer)
+
+}  // namespace locforge::localization

@@ -1,0 +1,82 @@
+// matches/mutual_nn: nearest-neighbour descriptor matching per image pair
+// (../common/matching); each pair's .matches file is written atomically,
+// so sharded and interrupted runs resume.
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+
+#include "locforge/kapture/csv.h"
+#include "locforge/kapture/kapture.h"
+#include "locforge/plugin.h"
+#include "match_io.h"
+#include "matching.h"
+
+namespace locforge::matching {
+
+namespace {
+
+struct MutualNnOptions {
+  bool cross_check = true;
+  double ratio = 1.0;
+  double max_distance = 2.0;
+  int min_matches = 0;
+  static void Declare(ParamSchema<MutualNnOptions>& s) {
+    s.Add("cross_check", &MutualNnOptions::cross_check,
+          "keep only mutual nearest neighbours (cross validation)");
+    s.Add("ratio", &MutualNnOptions::ratio, "Lowe's ratio test threshold (1: off)").Range(0.1, 1);
+    s.Add("max_distance", &MutualNnOptions::max_distance,
+          "max L2 distance of unit-normalised descriptors (2: off)").Range(0, 2);
+    s.Add("min_matches", &MutualNnOptions::min_matches,
+          "pairs with fewer matches get no file").Min(0);
+  }
+};
+
+class MutualNnStage : public PerItemStage<MutualNnOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta = {"matches", "mutual_nn",
+            "Nearest-neighbour descriptor matching per pair (mutual check, ratio, distance)",
+            {kFeaturesPort, kQueryFeaturesPort, {"pairs", "kapture.pairs", "image pairs to match"}},
+            {kMatchesOut}};
+    meta.version = "1.0.0";
+    return meta;
+  }
+  using PerItemStage::PerItemStage;
+
+  std::vector<std::string> ListItems(RunContext& ctx) override {
+    Load(ctx);
+    return ReadPairItems(ctx.Input("pairs"));
+  }
+  void ProcessItem(RunContext& ctx, const std::string& item) override {
+    const Features& f = Load(ctx);
+    const auto [a, b] = SplitItem(item);
+    const FeatureFolder &fa = f.Of(a), &fb = f.Of(b);
+    NnOptions nn;
+    nn.cross_check = options().cross_check;
+    nn.ratio = options().ratio;
+    nn.max_distance = options().max_distance;
+    const auto matches = MatchDescriptors(NormalisedDescriptors(fa.Descriptors(a)),
+                                          NormalisedDescriptors(fb.Descriptors(b)), nn);
+    if (static_cast<int>(matches.size()) < std::max(1, options().min_matches)) return;
+    k::WriteMatches(ctx.output_dir(), f.map.type, a, b, matches);
+  }
+  void Finalize(RunContext& ctx) override {
+    fs::create_directories(ctx.output_dir() / k::layout::kMatches / Load(ctx).map.type);
+  }
+
+ private:
+  const Features& Load(RunContext& ctx) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!features_) features_ = Features::Open(ctx);
+    return *features_;
+  }
+  std::mutex mutex_;
+  std::optional<Features> features_;
+};
+
+}  // namespace
+
+LOCFORGE_EXPORT_STAGE(AddMutualNn, MutualNnStage)
+
+}  // namespace locforge::matching

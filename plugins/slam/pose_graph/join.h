@@ -1,0 +1,63 @@
+// Deciding a join of two parts of the map (sequences, or groups of sequences
+// already joined) from the hypotheses of their relative frame T_A_B that the
+// loops between them suggest (join_consensus.h), each judged by the evidence
+// of the whole overlap (floor_grid.h): a join is made only when one
+// hypothesis explains the overlap and no distinct one comes close; otherwise
+// it is refused and reported with the rival hypotheses.
+#ifndef LOCFORGE_PLUGINS_LIDAR_JOIN_H_
+#define LOCFORGE_PLUGINS_LIDAR_JOIN_H_
+
+#include <string>
+#include <vector>
+
+#include "floor_grid.h"
+#include "join_consensus.h"
+
+namespace locforge::lidar {
+
+// One frame hypothesis: a cluster of agreeing loops.
+struct JoinHypothesis {
+  Pose T_A_B;
+  std::vector<int> loops;    // candidates (indices) agreeing with it
+  int support = 0;           // distinct keyframes of B among them
+  JoinEvidence evidence;     // of the whole overlap under T_A_B
+};
+
+// Groups candidates into hypotheses: the best-overlapping unassigned
+// candidate opens a cluster, every candidate agreeing with it joins it.
+std::vector<JoinHypothesis> ClusterHypotheses(const std::vector<JoinCandidate>& candidates,
+                                              const JoinConsensusOptions& agreement);
+
+struct JoinDecisionOptions {
+  // A hypothesis explains the overlap when at most this fraction of the
+  // tall structure seen by both maps lies in the other's free space (a right
+  // frame leaves what the maps' drift and moved objects put there) ...
+  double max_conflict = 0.05;
+  // ... over at least this many agreeing structure cells (each way).
+  int64_t min_agreeing = 200;
+  // A distinct hypothesis is a rival, and the join is refused as ambiguous,
+  // when its conflict fraction is at most rival_conflict_ratio x the
+  // winner's + rival_conflict_margin (the winner's own conflicts are people
+  // and moved objects: a rival within that noise is as good an answer) and
+  // it agrees over at least rival_overlap of the winner's cells.
+  double rival_conflict_ratio = 1.5;
+  double rival_conflict_margin = 0.02;
+  double rival_overlap = 0.5;
+  bool Check(std::string* why = nullptr) const;
+};
+
+struct JoinDecision {
+  enum class Status { kJoined, kAmbiguous, kNoEvidence };
+  Status status = Status::kNoEvidence;
+  int winner = -1;  // hypothesis index (also the best one when refused)
+  int rival = -1;   // the closest distinct hypothesis, -1 if none
+  std::string reason;
+};
+const char* ToString(JoinDecision::Status status);
+
+// The decision among hypotheses whose evidence is filled in.
+JoinDecision DecideJoin(const std::vector<JoinHypothesis>& hypotheses, const JoinDecisionOptions& options);
+
+}  // namespace locforge::lidar
+
+#endif  // LOCFORGE_PLUGINS_LIDAR_JOIN_H_

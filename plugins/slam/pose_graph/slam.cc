@@ -1,0 +1,348 @@
+#include "slam.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+namespace locforge::lidar {
+
+namespace {
+
+Pose YawPose(double yaw, const Eigen::Vector3d& t = Eigen::Vector3d::Zero()) {
+  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())), t);
+}
+
+Matrix6d DiagonalInformation(double sigma_t, double sigma_r_rad) {
+  Vector6d d;
+  d << Eigen::Vector3d::Constant(1 / (sigma_t * sigma_t)), Eigen::Vector3d::Constant(1 / (sigma_r_rad * sigma_r_rad));
+  return d.asDiagonal();
+}
+
+}  // namespace
+
+bool ParseInitialPose(const std::string& entry, std::string* sequence, Pose* start) {
+  std::istringstream s(entry);
+  double x, y, yaw;
+  if (!(s >> *sequence >> x >> y >> yaw)) return false;
+  *start = YawPose(yaw * M_PI / 180, Eigen::Vector3d(x, y, 0));
+  return true;
+}
+
+Slam::Slam(const PoseGraphSlamOptions& options, const WheelOdometry* odometry, Registrar registrar, Registrar refine,
+           int threads, SlamHooks hooks)
+    : o_(options),
+      odometry_(odometry),
+      motion_(odometry, options.max_scan_gap, options.seconds_per_unit),
+      registrar_(std::move(registrar)),
+      refine_registrar_(std::move(refine)),
+      threads_(threads),
+      hooks_(std::move(hooks)) {}
+
+void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::function<Cloud(size_t)>& read) {
+  std::map<std::string, Pose> corrections;
+  for (const auto& p : o_.initial_poses) {
+    std::string seq;
+    Pose start;
+    if (!ParseInitialPose(p, &seq, &start))  // also refused by PoseGraphSlamOptions::Check
+      throw ParamError("initial_poses: '" + p + "' is not 'sequence x y yaw_deg'");
+    corrections[seq] = start;
+  }
+  ScanContextOptions sco;
+  std::map<std::string, Pose> start_poses;
+  for (const KeyframeChoice& c : ChooseKeyframes(scans, motion_, o_.keyframe_distance, o_.keyframe_angle)) {
+    const ScanStamp& s = scans[c.scan];
+    Keyframe kf;
+    kf.id = static_cast<int>(keyframes_.size());
+    kf.timestamp = s.timestamp;
+    kf.sequence = s.sequence;
+    kf.travelled = c.travelled;
+    kf.cloud = read(c.scan);
+    kf.rough = VoxelDownsample(kf.cloud, o_.loop_rough_voxel);
+    kf.context = MakeScanContext(kf.cloud, sco);
+    // Initial pose: the sequence's start (identity, or the manual correction)
+    // x odometry (constant velocity: chained by the sequential registrations).
+    if (c.segment_start) {
+      const auto m = corrections.find(s.sequence);
+      if (!start_poses.count(s.sequence)) start_poses[s.sequence] = m != corrections.end() ? m->second : Pose();
+      graph_.nodes[kf.id] = start_poses[s.sequence];
+    } else {
+      const Keyframe& last = keyframes_.back();
+      graph_.nodes[kf.id] = graph_.nodes[last.id] * motion_.Relative(last.timestamp, kf.timestamp);
+    }
+    // A manual initial pose puts the sequence in the first one's frame: part
+    // 0, the part of keyframe 0.
+    const bool manual = corrections.count(s.sequence) > 0;
+    if (manual) manual_.insert(s.sequence);
+    component_.emplace(kf.sequence, manual ? 0 : kf.id);
+    keyframes_.push_back(std::move(kf));
+  }
+  if (keyframes_.empty())
+    throw InputError("records_lidar.txt", 0, "records_lidar",
+                     odometry_ ? "no scan covered by odometry" : "no scan");
+  if (o_.planar) {
+    graph_.planar_sigma_z = o_.planar_sigma_z;
+    graph_.planar_sigma_tilt = o_.planar_sigma_tilt * M_PI / 180;
+  }
+}
+
+int Slam::AnchorComponent() const { return component_.at(keyframes_.front().sequence); }
+
+// Guess of T_{i-1,i}: wheel odometry, or constant velocity: the previous
+// keyframe step's twist xi = Log(T_{i-2,i-1}) scaled by the ratio of the time
+// steps (identity at a segment's start).
+Pose Slam::MotionGuess(size_t i) const {
+  const Keyframe& a = keyframes_[i - 1];
+  const Keyframe& b = keyframes_[i];
+  if (odometry_) return motion_.Relative(a.timestamp, b.timestamp);
+  if (i < 2 || !motion_.SameSegment(keyframes_[i - 2].sequence, keyframes_[i - 2].timestamp, a.sequence, a.timestamp))
+    return Pose();
+  const Keyframe& z = keyframes_[i - 2];
+  const Pose previous = graph_.nodes.at(z.id).Inverse() * graph_.nodes.at(a.id);
+  const double ratio = static_cast<double>(b.timestamp - a.timestamp) / std::max<double>(1, a.timestamp - z.timestamp);
+  return ExpSE3(LogSE3(previous) * ratio);
+}
+
+// The back-end's Hessian in the edge's coordinates, rescaled so its best
+// directions have the sigmas (PoseGraphSlamOptions); fixed sigmas when asked
+// for or when the Hessian is unusable.
+Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) {
+  const double sigma_r = o_.sigma_rotation * M_PI / 180;
+  const Matrix6d fixed = DiagonalInformation(o_.sigma_translation, sigma_r);
+  if (o_.edge_information == "fixed") return fixed;
+  Matrix6d out;
+  if (!NormalizeInformation(RegistrationInformationToEdge(r.information, T_ab), o_.sigma_translation, sigma_r,
+                            o_.information_max_ratio, &out)) {
+    ++stats_.information_fallbacks;
+    return fixed;
+  }
+  return out;
+}
+
+// The final pass of an accepted registration (refine_correspondence_distance):
+// its pose and information when it converged near `first`, else `first`;
+// `first`'s overlap is kept (acceptance is decided on the first pass).
+RegistrationResult Slam::Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target) {
+  if (o_.refine_correspondence_distance <= 0) return first;
+  RegistrationResult fine = refine_registrar_(source, target, first.T_target_source);
+  const double moved = (fine.T_target_source.t - first.T_target_source.t).norm();
+  if (!fine.converged || moved > o_.refine_correspondence_distance) {
+    ++stats_.refinements_rejected;
+    return first;
+  }
+  ++stats_.refinements;
+  fine.inlier_fraction = first.inlier_fraction;
+  return fine;
+}
+
+LoopCheckOptions Slam::LoopOptions(double rough_error) const {
+  LoopCheckOptions lo;
+  lo.rough_overlap = o_.loop_rough_overlap;
+  lo.rough_error_m = rough_error;
+  lo.max_guess_distance_m = o_.loop_radius;
+  lo.overlap = o_.loop_overlap;
+  return lo;
+}
+
+Refiner Slam::MakeRefiner() {
+  return [this](const RegistrationResult& r, const Cloud& s, const Cloud& t) { return Refine(r, s, t); };
+}
+
+std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
+                                                double rough_error) {
+  return lidar::CheckLoop(registrar_, MakeRefiner(), a, b, guesses, LoopOptions(rough_error));
+}
+
+void Slam::AddSequentialEdges() {
+  const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation, 5 * o_.sigma_rotation * M_PI / 180);
+  for (size_t i = 1; i < keyframes_.size(); ++i) {
+    hooks_.check_cancelled();
+    const Keyframe& a = keyframes_[i - 1];
+    Keyframe& b = keyframes_[i];
+    if (!motion_.SameSegment(a.sequence, a.timestamp, b.sequence, b.timestamp)) continue;
+    // Constant velocity mispredicts sudden turns and stops: the zero-motion
+    // guess is tried too (the better-overlapping accepted result is kept),
+    // then, when both fail, headings around the guess.
+    std::vector<Pose> guesses = {MotionGuess(i)};
+    if (!odometry_ && (guesses[0].t.norm() > 0.05 || Eigen::AngleAxisd(guesses[0].q).angle() > 0.05))
+      guesses.push_back(Pose());
+    Pose guess = guesses[0];
+    RegistrationResult r;
+    bool ok = false;
+    auto try_guesses = [&](const std::vector<Pose>& candidates) {
+      for (const Pose& g : candidates) {
+        const RegistrationResult c = registrar_(b.cloud, a.cloud, g);
+        const bool c_ok = c.converged && c.inlier_fraction >= o_.min_overlap &&
+                          (c.T_target_source.t - g.t).norm() < o_.max_guess_deviation;
+        if (c_ok && (!ok || c.inlier_fraction > r.inlier_fraction)) {
+          r = c;
+          guess = g;
+          ok = true;
+        }
+      }
+    };
+    try_guesses(guesses);
+    if (!ok && !odometry_) {
+      std::vector<Pose> turned;
+      for (int h = 1; h < o_.loop_yaw_hypotheses; ++h)
+        turned.push_back(guesses[0] * YawPose(2 * M_PI * h / o_.loop_yaw_hypotheses));
+      try_guesses(turned);
+    }
+    guess = ok ? guess : guesses[0];
+    if (ok) r = Refine(r, b.cloud, a.cloud);
+    PoseGraphEdge e;
+    e.from = a.id;
+    e.to = b.id;
+    e.T_from_to = ok ? r.T_target_source : guess;
+    e.information = ok ? EdgeInformation(r, e.T_from_to) : odo_info;
+    if (!ok) ++stats_.sequential_fallbacks;
+    graph_.edges.push_back(e);
+    // Odometry edge beside the registration one: constrains what scans leave
+    // free (along corridors), sigma proportional to the distance driven.
+    if (ok && odometry_ && o_.odometry_sigma > 0) {
+      PoseGraphEdge odo = e;
+      odo.T_from_to = guess;
+      const double d = std::max(motion_.Distance(a.timestamp, b.timestamp), 0.05);
+      // Turning in place: wheel-radius and axle errors scale the turned angle (5 % here).
+      const double turned = Eigen::AngleAxisd(guess.q).angle();
+      odo.information = DiagonalInformation(o_.odometry_sigma * d,
+                                            o_.odometry_sigma_rotation * M_PI / 180 * d + 0.05 * turned);
+      graph_.edges.push_back(odo);
+    }
+    graph_.nodes[b.id] = graph_.nodes[a.id] * e.T_from_to;  // chain the initial estimate
+    if (!odometry_) b.travelled = a.travelled + e.T_from_to.t.norm();
+    hooks_.progress(i, keyframes_.size(), "sequential edges");
+  }
+}
+
+void Slam::AddLoopEdge(const Keyframe& a, const Keyframe& b, const RegistrationResult& fine) {
+  PoseGraphEdge e;
+  e.from = a.id;
+  e.to = b.id;
+  e.T_from_to = fine.T_target_source;
+  e.information = EdgeInformation(fine, e.T_from_to);
+  e.loss = o_.loss == "cauchy" ? RobustLoss::kCauchy : o_.loss == "huber" ? RobustLoss::kHuber : RobustLoss::kNone;
+  e.loss_scale = o_.loss_scale;
+  e.loop = true;
+  graph_.edges.push_back(e);
+  accepted_.insert({std::min(a.id, b.id), std::max(a.id, b.id)});
+}
+
+int Slam::AddLoopEdges() {
+  std::vector<int> component(keyframes_.size());
+  for (size_t i = 0; i < keyframes_.size(); ++i) component[i] = component_.at(keyframes_[i].sequence);
+  LoopSearchOptions lo;
+  lo.radius_m = o_.loop_radius;
+  lo.min_travel_m = o_.loop_min_travel;
+  lo.stride = o_.loop_stride;
+  const auto candidates = LoopCandidates(keyframes_, graph_.nodes, component, lo);
+  int added = 0;
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    hooks_.check_cancelled();
+    const auto [ia, ib] = candidates[k];
+    // Failed candidates are tried again next round, from better estimates.
+    if (accepted_.count({ia, ib})) continue;
+    ++stats_.loop_tests;
+    const Keyframe& a = keyframes_[ia];
+    const Keyframe& b = keyframes_[ib];
+    const Pose guess = graph_.nodes[a.id].Inverse() * graph_.nodes[b.id];
+    const std::vector<RegistrationResult> fine = CheckLoop(a, b, {guess}, o_.loop_rough_error);
+    if (!fine.empty()) {
+      AddLoopEdge(a, b, fine.front());
+      ++added;
+    }
+    hooks_.progress(k + 1, candidates.size(), "loop closures");
+  }
+  return added;
+}
+
+void Slam::Optimize() {
+  // Every part keeps its own gauge: its first keyframe is held.
+  std::set<int> fixed;
+  for (const auto& [seq, c] : component_) fixed.insert(c);
+  graph_.fixed.assign(fixed.begin(), fixed.end());
+  PoseGraphOptions solver;
+  solver.threads = threads_;
+  const PoseGraphSummary s = lidar::Optimize(solver, &graph_);
+  if (poses_version_ == 0) stats_.summary.initial_cost = s.initial_cost;
+  stats_.summary.final_cost = s.final_cost;
+  stats_.summary.iterations += s.iterations;
+  stats_.summary.report = s.report;
+  ++poses_version_;
+}
+
+void Slam::AddStepTime(const std::string& step, double seconds) {
+  for (auto& [name, t] : stats_.steps)
+    if (name == step) {
+      t += seconds;
+      return;
+    }
+  stats_.steps.emplace_back(step, seconds);
+}
+
+void Slam::Run() {
+  auto timed = [this](const std::string& step, auto&& f) {
+    const auto start = std::chrono::steady_clock::now();
+    auto result = f();
+    AddStepTime(step, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    return result;
+  };
+  timed("sequential edges", [&] { AddSequentialEdges(); return 0; });
+  before_ = graph_;
+  // Each part alone first: its own loops, optimised, so that the maps
+  // compared when joining are as right as they get.
+  int added = timed("loops", [&] { return AddLoopEdges(); });
+  timed("optimisation", [&] { Optimize(); return 0; });
+  hooks_.info("pose_graph: " + std::to_string(added) + " loop edges within the parts");
+  for (int round = 1; round <= o_.rounds; ++round) {
+    const size_t edges = graph_.edges.size();
+    const int joined = timed("joins", [&] { return JoinComponents(round); });
+    timed("loops", [&] { return AddLoopEdges(); });
+    added = static_cast<int>(graph_.edges.size() - edges);  // join loops + the others
+    hooks_.info("pose_graph: round " + std::to_string(round) + ": " + std::to_string(joined) + " parts joined, " +
+                std::to_string(added) + " loop edges");
+    timed("optimisation", [&] { Optimize(); return 0; });
+    if (added == 0 && joined == 0) break;
+  }
+  timed("join check", [&] { CheckFinalJoins(); return 0; });
+}
+
+// T_world_rig at t. Wheel odometry: the latest keyframe at or before t in
+// t's odometry segment, moved by odometry (or the first keyframe, backwards).
+// Constant velocity: interpolated between the keyframes around t (held at
+// the nearest one outside them), within one segment.
+Pose Slam::PoseAt(Timestamp t, bool* found, const Keyframe** from) const {
+  const auto after = std::upper_bound(keyframes_.begin(), keyframes_.end(), t,
+                                      [](Timestamp v, const Keyframe& kf) { return v < kf.timestamp; });
+  const double td = static_cast<double>(t);
+  const Keyframe* before = after != keyframes_.begin() ? &*(after - 1) : nullptr;
+  const Keyframe* next = after != keyframes_.end() ? &*after : nullptr;
+  if (!odometry_) {
+    auto near = [&](const Keyframe* k) {
+      return k && std::abs(static_cast<double>(t - k->timestamp)) * o_.seconds_per_unit <= o_.max_scan_gap;
+    };
+    const bool nb = near(before), nn = near(next);
+    *found = nb || nn;
+    if (from) *from = nb ? before : nn ? next : nullptr;
+    if (nb && nn && motion_.SameSegment(before->sequence, before->timestamp, next->sequence, next->timestamp) &&
+        next->timestamp > before->timestamp) {
+      const double alpha =
+          static_cast<double>(t - before->timestamp) / static_cast<double>(next->timestamp - before->timestamp);
+      return Interpolate(graph_.nodes.at(before->id), graph_.nodes.at(next->id), alpha);
+    }
+    if (nb) return graph_.nodes.at(before->id);
+    if (nn) return graph_.nodes.at(next->id);
+    return Pose();
+  }
+  const Keyframe* best = nullptr;
+  if (before && odometry_->SameSegment(static_cast<double>(before->timestamp), td))
+    best = before;
+  else if (next && odometry_->SameSegment(static_cast<double>(next->timestamp), td))
+    best = next;
+  *found = best != nullptr;
+  if (from) *from = best;
+  if (!best) return Pose();
+  return graph_.nodes.at(best->id) * odometry_->Relative(static_cast<double>(best->timestamp), td);
+}
+
+}  // namespace locforge::lidar

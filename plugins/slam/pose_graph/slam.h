@@ -1,0 +1,144 @@
+// The pose-graph LiDAR SLAM behind slam/pose_graph (paper section 3.1):
+// keyframes of undistorted scans, sequential registration edges (plus weak
+// odometry edges), loop closures coarse to fine, Ceres on SE(3), and
+// sequences joined into one frame only when the whole overlap confirms the
+// join (join.h). The stage (pose_graph_stage.cc) reads the scans, creates
+// the registration back-ends and writes what this computes.
+#ifndef LOCFORGE_PLUGINS_LIDAR_SLAM_H_
+#define LOCFORGE_PLUGINS_LIDAR_SLAM_H_
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "floor_grid.h"
+#include "join.h"
+#include "keyframes.h"
+#include "locforge/kapture/types.h"
+#include "loop_search.h"
+#include "pose_graph.h"
+#include "lidar_stages.h"
+
+namespace locforge::lidar {
+
+// What the algorithm reports and asks of its caller.
+struct SlamHooks {
+  std::function<void(const std::string&)> info = [](const std::string&) {};
+  std::function<void(size_t, size_t, const std::string&)> progress = [](size_t, size_t, const std::string&) {};
+  std::function<void()> check_cancelled = [] {};
+};
+
+// One attempt to join part B to part A.
+struct JoinAttempt {
+  int round = 0;
+  std::string a, b;                 // the parts' sequences, '+'-joined
+  JoinDecision::Status status = JoinDecision::Status::kNoEvidence;
+  std::string reason;
+  int candidates = 0;               // loops found between them (seeds, places, predicted)
+  int hypotheses = 0;               // distinct frames they suggested
+  bool has_winner = false, has_rival = false;
+  JoinHypothesis winner, rival;     // when present
+  int predicted_found = 0, predicted_tested = 0;
+  Pose T_A_B;                       // the frame applied (joined)
+};
+
+// Where every sequence ended up.
+struct SequenceJoin {
+  std::string sequence;
+  std::string status;        // anchor | joined | manual | separate
+  std::string component;     // first sequence of its part
+  int round = 0;             // round it joined in (0: anchor or manual)
+  // After the last optimisation: the sequence's map against the rest of its
+  // part (no evidence when alone).
+  JoinEvidence final_evidence;
+  bool consistent = true;
+};
+
+// Wall time of each step (s), in the order they ran.
+using StepTimes = std::vector<std::pair<std::string, double>>;
+
+struct SlamStats {
+  int sequential_fallbacks = 0, information_fallbacks = 0;
+  int refinements = 0, refinements_rejected = 0;
+  int64_t loop_tests = 0;
+  int joins = 0, join_attempts = 0, join_tests = 0, join_rejected_loops = 0;
+  PoseGraphSummary summary;
+  StepTimes steps;  // keyframes, sequential edges, loops, joins, optimisation, join check
+};
+
+class Slam {
+ public:
+  // odometry: null for motion_prior constant_velocity. `registrar` runs every
+  // registration; `refine` the final pass of refine_correspondence_distance
+  // (unused when that is 0).
+  Slam(const PoseGraphSlamOptions& options, const WheelOdometry* odometry, Registrar registrar, Registrar refine,
+       int threads, SlamHooks hooks);
+
+  // Keyframes of `scans` (time order; read(i) loads scan i in the rig frame).
+  void SelectKeyframes(const std::vector<ScanStamp>& scans, const std::function<Cloud(size_t)>& read);
+  // Sequential edges, rounds of joins, loops and optimisation, final checks.
+  void Run();
+
+  // T_world_rig at t, in t's part's frame; false when no keyframe is near.
+  // `from`: the keyframe it was taken from (its part is t's).
+  Pose PoseAt(Timestamp t, bool* found, const Keyframe** from = nullptr) const;
+  // The part of `sequence` (its first keyframe's id) and of the first sequence.
+  int ComponentOf(const std::string& sequence) const { return component_.at(sequence); }
+  int AnchorComponent() const;
+
+  const std::vector<Keyframe>& keyframes() const { return keyframes_; }
+  const PoseGraph& graph() const { return graph_; }
+  const PoseGraph& initial_graph() const { return before_; }
+  const std::vector<JoinAttempt>& join_attempts() const { return attempts_; }
+  const std::vector<SequenceJoin>& sequence_joins() const { return sequence_joins_; }
+  const SlamStats& stats() const { return stats_; }
+  // Adds `seconds` to a step of stats().steps (the stage times its own steps too).
+  void AddStepTime(const std::string& step, double seconds);
+  // Floor grid of a set of keyframes at their current poses.
+  FloorGrid MakeFloor(const std::vector<const Keyframe*>& keyframes) const;
+
+ private:
+  RegistrationResult Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target);
+  LoopCheckOptions LoopOptions(double rough_error) const;
+  Refiner MakeRefiner();
+  std::vector<RegistrationResult> CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
+                                            double rough_error);
+  Pose MotionGuess(size_t i) const;
+  Matrix6d EdgeInformation(const RegistrationResult& r, const Pose& T_ab);
+  void AddSequentialEdges();
+  int AddLoopEdges();
+  void AddLoopEdge(const Keyframe& a, const Keyframe& b, const RegistrationResult& fine);
+  void Optimize();
+  int JoinComponents(int round);
+  bool TryJoin(int A, int B, int round);
+  std::vector<const Keyframe*> KeyframesOf(int component) const;
+  std::string NameOf(int component) const;
+  const FloorGrid& FloorOf(int component);
+  void CheckFinalJoins();
+
+  const PoseGraphSlamOptions& o_;
+  const WheelOdometry* odometry_;
+  MotionModel motion_;
+  Registrar registrar_, refine_registrar_;
+  int threads_;
+  SlamHooks hooks_;
+  std::vector<Keyframe> keyframes_;  // sequences in time order, each in time order
+  PoseGraph graph_, before_;
+  std::set<std::pair<int, int>> accepted_;  // loop edges added (min id, max id)
+  // Sequences sharing a frame: sequence -> component (id of its first keyframe).
+  std::map<std::string, int> component_;
+  std::set<std::string> manual_;  // sequences placed by initial_poses
+  std::map<std::pair<int, int>, std::pair<size_t, size_t>> join_failed_;  // (A, B) -> their sizes then
+  std::map<int, std::pair<int, FloorGrid>> floors_;  // component -> (poses version, grid)
+  int poses_version_ = 0;
+  std::vector<JoinAttempt> attempts_;
+  std::vector<SequenceJoin> sequence_joins_;
+  SlamStats stats_;
+};
+
+}  // namespace locforge::lidar
+
+#endif  // LOCFORGE_PLUGINS_LIDAR_SLAM_H_

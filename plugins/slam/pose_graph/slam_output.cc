@@ -1,0 +1,222 @@
+#include "slam_output.h"
+
+#include <set>
+#include <sstream>
+
+#include "locforge/kapture/io.h"
+#include "plot.h"
+
+namespace locforge::lidar {
+
+namespace {
+
+std::string Evidence(const JoinEvidence& e) {
+  std::ostringstream s;
+  s.precision(4);
+  s << e.Agreeing() << "," << e.Conflict() << "," << e.b_in_a.agreeing << "," << e.b_in_a.conflicting << ","
+    << e.a_in_b.agreeing << "," << e.a_in_b.conflicting;
+  return s.str();
+}
+
+std::string EvidenceJson(const JoinEvidence& e) {
+  std::ostringstream s;
+  s.precision(6);
+  s << "{\"agreeing\": " << e.Agreeing() << ", \"conflict\": " << e.Conflict() << ", \"b_in_a\": ["
+    << e.b_in_a.agreeing << ", " << e.b_in_a.conflicting << ", " << e.b_in_a.unseen << "], \"a_in_b\": ["
+    << e.a_in_b.agreeing << ", " << e.a_in_b.conflicting << ", " << e.a_in_b.unseen << "]}";
+  return s.str();
+}
+
+std::string Quoted(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
+}  // namespace
+
+std::string JoinsCsv(const Slam& slam) {
+  std::ostringstream s;
+  s << "# Where every sequence ended up. status: anchor (its frame is the output's), joined, manual "
+       "(initial_poses), separate (not joined: not in trajectories.txt). final_*: the sequence's map against "
+       "the rest of its part after optimisation (cells of 0.1 m agreeing, fraction in the other's free space).\n";
+  s << "sequence,status,part,round,consistent,final_agreeing,final_conflict,final_b_in_a_agreeing,"
+       "final_b_in_a_conflicting,final_a_in_b_agreeing,final_a_in_b_conflicting\n";
+  for (const auto& j : slam.sequence_joins())
+    s << j.sequence << "," << j.status << "," << j.component << "," << j.round << "," << (j.consistent ? 1 : 0)
+      << "," << Evidence(j.final_evidence) << "\n";
+  s << "# Attempts: part b to part a; the best frame and its closest distinct rival (when any).\n";
+  s << "# round,a,b,result,loops,frames,best_agreeing,best_conflict,best_b_in_a_agreeing,best_b_in_a_conflicting,"
+       "best_a_in_b_agreeing,best_a_in_b_conflicting,rival_agreeing,rival_conflict,rival_b_in_a_agreeing,"
+       "rival_b_in_a_conflicting,rival_a_in_b_agreeing,rival_a_in_b_conflicting,predicted_found,predicted_tested,"
+       "reason\n";
+  const JoinEvidence none;
+  for (const auto& at : slam.join_attempts())
+    s << "# " << at.round << "," << at.a << "," << at.b << "," << ToString(at.status) << "," << at.candidates << ","
+      << at.hypotheses << "," << Evidence(at.has_winner ? at.winner.evidence : none) << ","
+      << Evidence(at.has_rival ? at.rival.evidence : none) << "," << at.predicted_found << ","
+      << at.predicted_tested << "," << Quoted(at.reason) << "\n";
+  return s.str();
+}
+
+std::string UnjoinedMessage(const Slam& slam) {
+  std::ostringstream s;
+  std::vector<std::string> separate, inconsistent;
+  for (const auto& j : slam.sequence_joins()) {
+    if (j.status == "separate") separate.push_back(j.sequence);
+    if (!j.consistent) inconsistent.push_back(j.sequence);
+  }
+  if (!inconsistent.empty()) {
+    s << "the joined map does not hold: after optimisation the map of";
+    for (const auto& q : inconsistent) s << " " << q;
+    s << " puts structure into the free space of the rest of its part (joins.csv below). A join or a loop is wrong; "
+         "give the start poses of these sequences with initial_poses to check them.";
+  }
+  if (!separate.empty()) {
+    if (!inconsistent.empty()) s << " Also, ";
+    s << "sequence(s)";
+    for (const auto& q : separate) s << " " << q;
+    s << " could not be joined to " << slam.keyframes().front().sequence
+      << " with certainty (attempts below). Give each start pose in the first sequence's frame, e.g. --set "
+         "'slam.initial_poses=[SEQUENCE X_M Y_M YAW_DEG]' (rough values do: the loops refine them), or set "
+         "unjoined: separate to keep them out of the merged frame.";
+  }
+  for (const auto& at : slam.join_attempts())
+    if (at.status != JoinDecision::Status::kJoined)
+      s << "\n  round " << at.round << ": " << at.b << " to " << at.a << ": " << ToString(at.status) << ": "
+        << at.reason;
+  return s.str();
+}
+
+std::string WriteSlamOutputs(const Slam& slam, const PoseGraphSlamOptions& o,
+                             const std::vector<kapture::DataRecord>& scans, const kapture::Kapture& dataset,
+                             const fs::path& out, std::chrono::steady_clock::time_point start) {
+  const auto outputs_start = std::chrono::steady_clock::now();
+  const PoseGraph& graph = slam.graph();
+  const auto& keyframes = slam.keyframes();
+  const int anchor = slam.AnchorComponent();
+  // Only the anchor's part: a part not joined lives in another frame.
+  auto in_anchor = [&](bool found, const Keyframe* from) {
+    return found && from && slam.ComponentOf(from->sequence) == anchor;
+  };
+  kapture::Trajectories trajectories;
+  for (const auto& r : scans) {
+    bool found = false;
+    const Keyframe* from = nullptr;
+    const Pose T_world_rig = slam.PoseAt(r.timestamp, &found, &from);
+    if (in_anchor(found, from)) trajectories.Set(r.timestamp, "rig", T_world_rig.Inverse());
+  }
+  // Cameras at every image: trajectory interpolation (odometry between
+  // keyframes) x rig extrinsics (T_camera_world = T_camera_rig T_rig_world).
+  int64_t camera_poses = 0;
+  if (dataset.HasRecords(kapture::kSensorCamera)) {
+    dataset.ForEachDataRecord(kapture::kSensorCamera, [&](const kapture::DataRecord& r) {
+      const kapture::Rig* rig = dataset.rigs().RigOf(r.device_id);
+      const kapture::RigSensor* rs = rig ? rig->Find(r.device_id) : nullptr;
+      if (!rs) return;
+      bool found = false;
+      const Keyframe* from = nullptr;
+      const Pose T_world_rig = slam.PoseAt(r.timestamp, &found, &from);
+      if (!in_anchor(found, from)) return;
+      trajectories.Set(r.timestamp, r.device_id, rs->sensor_from_rig * T_world_rig.Inverse());
+      ++camera_poses;
+    });
+  }
+  kapture::WriteTrajectories(out / kapture::layout::kTrajectories, trajectories);
+  kapture::WriteSensors(out / kapture::layout::kSensors, dataset.sensors());
+  if (!dataset.rigs().empty()) kapture::WriteRigs(out / kapture::layout::kRigs, dataset.rigs());
+  WriteFileAtomic(out / "joins.csv", JoinsCsv(slam));
+
+  Cloud map;
+  for (const auto& kf : keyframes) {
+    if (slam.ComponentOf(kf.sequence) != anchor) continue;
+    Cloud c = kf.cloud;
+    Transform(graph.nodes.at(kf.id), &c);
+    map.points.insert(map.points.end(), c.points.begin(), c.points.end());
+  }
+  map = VoxelDownsample(map, o.map_voxel);
+  WritePcd(out / "map.pcd", map);
+  WritePly(out / "map.ply", map);
+  WriteG2o(out / "pose_graph.g2o", graph);
+
+  std::vector<PlotSequence> plot_before, plot_after;
+  std::vector<std::pair<int, int>> loops;
+  for (const auto& e : graph.edges)
+    if (e.loop) loops.emplace_back(e.from, e.to);
+  for (const auto& kf : keyframes) {
+    if (plot_after.empty() || plot_after.back().name != kf.sequence) {
+      plot_before.push_back({kf.sequence, {}, {}});
+      plot_after.push_back({kf.sequence, {}, {}});
+    }
+    plot_before.back().ids.push_back(kf.id);
+    plot_before.back().xy.push_back(slam.initial_graph().nodes.at(kf.id).t.head<2>());
+    plot_after.back().ids.push_back(kf.id);
+    plot_after.back().xy.push_back(graph.nodes.at(kf.id).t.head<2>());
+  }
+  WriteTopDown(out / "trajectories", plot_before, plot_after, loops);
+
+  int loop_edges = 0, cross = 0;
+  for (const auto& e : graph.edges) {
+    if (!e.loop) continue;
+    ++loop_edges;
+    if (keyframes[e.from].sequence != keyframes[e.to].sequence) ++cross;
+  }
+  std::set<std::string> sequences;
+  for (const auto& kf : keyframes) sequences.insert(kf.sequence);
+  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius);
+  std::ostringstream loops_json;
+  loops_json.precision(16);
+  for (const auto& e : graph.edges) {
+    if (!e.loop) continue;
+    const Keyframe& a = keyframes[e.from];
+    const Keyframe& b = keyframes[e.to];
+    const Eigen::Vector3d pa = graph.nodes.at(a.id).t, pb = graph.nodes.at(b.id).t;
+    loops_json << (loops_json.tellp() > 0 ? ",\n    " : "\n    ") << "{\"from\": " << a.id << ", \"to\": " << b.id
+               << ", \"from_time\": " << a.timestamp << ", \"to_time\": " << b.timestamp << ", \"from_xy\": ["
+               << pa.x() << ", " << pa.y() << "], \"to_xy\": [" << pb.x() << ", " << pb.y() << "]}";
+  }
+  std::ostringstream joins_json;
+  for (const auto& at : slam.join_attempts()) {
+    joins_json << (joins_json.tellp() > 0 ? ",\n    " : "\n    ") << "{\"round\": " << at.round << ", \"a\": \""
+               << at.a << "\", \"b\": \"" << at.b << "\", \"result\": \"" << ToString(at.status)
+               << "\", \"loops\": " << at.candidates << ", \"frames\": " << at.hypotheses;
+    if (at.has_winner) joins_json << ", \"best\": " << EvidenceJson(at.winner.evidence);
+    if (at.has_rival) joins_json << ", \"rival\": " << EvidenceJson(at.rival.evidence);
+    joins_json << ", \"predicted_found\": " << at.predicted_found << ", \"predicted_tested\": " << at.predicted_tested
+               << "}";
+  }
+  const SlamStats& st = slam.stats();
+  StepTimes steps = st.steps;
+  const auto now = std::chrono::steady_clock::now();
+  steps.emplace_back("outputs", std::chrono::duration<double>(now - outputs_start).count());
+  const double seconds = std::chrono::duration<double>(now - start).count();
+  std::ostringstream steps_json;
+  steps_json.precision(6);
+  for (const auto& [name, t] : steps)
+    steps_json << (steps_json.tellp() > 0 ? ", " : "") << "\"" << name << "\": " << t;
+  std::ostringstream j;
+  j.precision(10);
+  j << "{\n  \"scans\": " << scans.size() << ",\n  \"keyframes\": " << keyframes.size()
+    << ",\n  \"sequences\": " << sequences.size() << ",\n  \"sequential_edges\": "
+    << graph.edges.size() - loop_edges << ",\n  \"sequential_odometry_fallbacks\": " << st.sequential_fallbacks
+    << ",\n  \"loop_edges\": " << loop_edges << ",\n  \"cross_sequence_loop_edges\": " << cross
+    << ",\n  \"loop_candidates_tested\": " << st.loop_tests << ",\n  \"joins\": " << st.joins
+    << ",\n  \"join_attempts\": " << st.join_attempts << ",\n  \"join_candidates_tested\": " << st.join_tests
+    << ",\n  \"join_rejected_loops\": " << st.join_rejected_loops << ",\n  \"initial_cost\": " << st.summary.initial_cost
+    << ",\n  \"final_cost\": " << st.summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
+    << ",\n  \"information_fallbacks\": " << st.information_fallbacks << ",\n  \"refinements\": " << st.refinements
+    << ",\n  \"refinements_rejected\": " << st.refinements_rejected << ",\n  \"map_points\": " << map.size()
+    << ",\n  \"map_plane_residual\": {\"k\": " << o.map_residual_k << ", \"radius\": " << o.map_residual_radius
+    << ", \"points\": " << crisp.points << ", \"skipped\": " << crisp.skipped << ", \"mean\": " << crisp.mean
+    << ", \"median\": " << crisp.median << ", \"rmse\": " << crisp.rmse << ", \"p90\": " << crisp.p90 << "}"
+    << ",\n  \"join_attempts_detail\": [" << joins_json.str() << "\n  ]"
+    << ",\n  \"loops\": [" << loops_json.str() << "\n  ]"
+    << ",\n  \"step_seconds\": {" << steps_json.str() << "}"
+    << ",\n  \"seconds\": " << seconds
+    << ",\n  \"scans_per_second\": " << scans.size() / std::max(seconds, 1e-9) << "\n}\n";
+  WriteFileAtomic(out / "slam.json", j.str());
+  return std::to_string(loop_edges) + " loop edges (" + std::to_string(cross) + " across sequences), " +
+         st.summary.report;
+}
+
+}  // namespace locforge::lidar

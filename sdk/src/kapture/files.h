@@ -1,0 +1,71 @@
+// File helpers shared by the parts of the kapture library (reader, writers,
+// copy, inspection). Internal: not installed.
+#ifndef LOCFORGE_SDK_KAPTURE_FILES_H_
+#define LOCFORGE_SDK_KAPTURE_FILES_H_
+
+#include <algorithm>
+#include <filesystem>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include "locforge/kapture/io.h"
+#include "locforge/kapture/kapture.h"
+
+namespace locforge::kapture::files {
+
+inline constexpr FeatureKind kAllKinds[] = {FeatureKind::kKeypoints, FeatureKind::kDescriptors,
+                                 FeatureKind::kGlobalFeatures};
+
+inline std::string InfoFileName(FeatureKind kind) { return std::string(FeatureKindFolder(kind)) + ".txt"; }
+
+inline bool IsDir(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_directory(p, ec);
+}
+inline bool IsFile(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_regular_file(p, ec);
+}
+
+inline bool EndsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+inline std::string Rel(const fs::path& p, const fs::path& base) {
+  return p.lexically_relative(base).generic_string();
+}
+
+// Regular files under `dir` (symlinks to files included), sorted by path.
+inline std::vector<fs::path> FilesUnder(const fs::path& dir) {
+  std::vector<fs::path> files;
+  if (!IsDir(dir)) return files;
+  for (auto it = fs::recursive_directory_iterator(dir); it != fs::recursive_directory_iterator();
+       ++it) {
+    std::error_code ec;
+    if (it->is_regular_file(ec)) files.push_back(it->path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+inline FeatureSet MakeFeatureSet(FeatureKind kind, const std::string& type, const fs::path& dir,
+                          const std::string& display_dir, bool legacy) {
+  FeatureSet set;
+  set.kind = kind;
+  set.dir = dir;
+  set.legacy_layout = legacy;
+  set.info = ReadFeatureInfo(dir / InfoFileName(kind), kind, display_dir + "/" + InfoFileName(kind));
+  set.type = type.empty() ? set.info.name : type;
+  return set;
+}
+
+// Record types whose records point at files under records_data.
+inline bool IsDataRecordType(const std::string& type) {
+  const RecordKind k = RecordKindOf(type);
+  return k == RecordKind::kCamera || k == RecordKind::kLidar || k == RecordKind::kDepth;
+}
+
+}  // namespace locforge::kapture::files
+
+#endif  // LOCFORGE_SDK_KAPTURE_FILES_H_
