@@ -47,8 +47,11 @@ struct LidarScan {
 // Unit direction of a laser in the sensor frame (x forward, z up, azimuth counter-clockwise).
 Eigen::Vector3d LaserDirection(const LidarOptions& lidar, int ring, int column);
 
+// `reference_raycast` casts every ray with World::Cast (QuadBvh, every
+// person): the slow reference that the default (World::CastNear) equals bit
+// for bit.
 LidarScan SimulateScan(const World& world, const Trajectory& trajectory, const LidarOptions& lidar,
-                       double start, uint64_t seed);
+                       double start, uint64_t seed, bool reference_raycast = false);
 
 }  // namespace locforge::sim
 

@@ -7,43 +7,52 @@
 namespace locforge::sim {
 namespace {
 
-double PathLength(const std::vector<Eigen::Vector2d>& path) {
-  double len = 0;
-  for (size_t i = 1; i < path.size(); ++i) len += (path[i] - path[i - 1]).norm();
-  return len;
-}
-
-Eigen::Vector2d PointAtArc(const std::vector<Eigen::Vector2d>& path, double s) {
+// The point at arc length s along a polyline whose segments have lengths `seg`.
+Eigen::Vector2d PointAtArc(const std::vector<Eigen::Vector2d>& path, const std::vector<double>& seg, double s) {
   for (size_t i = 1; i < path.size(); ++i) {
-    const double seg = (path[i] - path[i - 1]).norm();
-    if (s <= seg && seg > 0) return path[i - 1] + (path[i] - path[i - 1]) * (s / seg);
-    s -= seg;
+    if (s <= seg[i - 1] && seg[i - 1] > 0) return path[i - 1] + (path[i] - path[i - 1]) * (s / seg[i - 1]);
+    s -= seg[i - 1];
   }
   return path.back();
 }
 
 }  // namespace
 
+Crowd::Crowd(std::vector<Person> people) : people_(std::move(people)) {
+  for (const Person& p : people_) {
+    std::vector<double> seg;
+    double len = 0;
+    for (size_t i = 1; i < p.path.size(); ++i) {
+      seg.push_back((p.path[i] - p.path[i - 1]).norm());
+      len += seg.back();
+    }
+    segment_lengths_.push_back(std::move(seg));
+    path_lengths_.push_back(len);
+  }
+}
+
 Eigen::Vector2d Crowd::PositionAt(int index, double t) const {
   const Person& p = people_[index];
-  const double len = PathLength(p.path);
+  const double len = path_lengths_[index];
   if (len <= 0 || p.speed <= 0) return p.path.front();
   // Ping-pong along the polyline.
   double s = std::fmod(p.phase_m + p.speed * t, 2 * len);
   if (s < 0) s += 2 * len;
-  return PointAtArc(p.path, s <= len ? s : 2 * len - s);
+  return PointAtArc(p.path, segment_lengths_[index], s <= len ? s : 2 * len - s);
+}
+
+std::array<Cylinder, 2> Crowd::Cylinders(int i, const Eigen::Vector2d& c) const {
+  const Person& p = people_[i];
+  const double neck = 0.84 * p.height;
+  return {Cylinder{c, p.radius, 0.0, neck, i, 1.0 / 6.0, 1.0},
+          Cylinder{c, 0.45 * p.radius, neck, p.height, i, 0.0, 1.0 / 6.0}};
 }
 
 std::vector<Cylinder> Crowd::At(double t) const {
   std::vector<Cylinder> out;
   out.reserve(people_.size() * 2);
-  for (size_t i = 0; i < people_.size(); ++i) {
-    const Person& p = people_[i];
-    const Eigen::Vector2d c = PositionAt(static_cast<int>(i), t);
-    const double neck = 0.84 * p.height;
-    out.push_back({c, p.radius, 0.0, neck, static_cast<int>(i), 1.0 / 6.0, 1.0});
-    out.push_back({c, 0.45 * p.radius, neck, p.height, static_cast<int>(i), 0.0, 1.0 / 6.0});
-  }
+  for (int i = 0; i < static_cast<int>(people_.size()); ++i)
+    for (const Cylinder& c : Cylinders(i, PositionAt(i, t))) out.push_back(c);
   return out;
 }
 

@@ -6,6 +6,7 @@
 #define LOCFORGE_SIM_PEOPLE_H_
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -35,15 +36,21 @@ struct Person {
 class Crowd {
  public:
   Crowd() = default;
-  explicit Crowd(std::vector<Person> people) : people_(std::move(people)) {}
+  explicit Crowd(std::vector<Person> people);
 
   const std::vector<Person>& people() const { return people_; }
   Eigen::Vector2d PositionAt(int person, double t) const;
+  // Body and head cylinders of person `i` standing at `center` (entries 2 i
+  // and 2 i + 1 of At).
+  std::array<Cylinder, 2> Cylinders(int i, const Eigen::Vector2d& center) const;
   // Body and head cylinders of everyone at time t (two per person).
   std::vector<Cylinder> At(double t) const;
 
  private:
   std::vector<Person> people_;
+  // Per person: the lengths of its path's segments, and their sum.
+  std::vector<std::vector<double>> segment_lengths_;
+  std::vector<double> path_lengths_;
 };
 
 // `density` people per 100 m^2 of floor, each walking a random route on the

@@ -33,14 +33,10 @@ std::vector<Quad> QuadsOfDay(const Scene& scene, int day) {
 
 bool IntersectQuad(const Quad& q, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
                    Hit* hit) {
-  const double denom = q.normal.dot(d);
-  if (std::abs(denom) < 1e-12) return false;
-  const double t = q.normal.dot(q.origin - o) / denom;
+  double denom, t, a, b, uu, vv;
+  if (!CrossQuadPlane(q, o, d, &denom, &t)) return false;
   if (t <= t_min || t >= hit->t) return false;
-  const Eigen::Vector3d rel = o + t * d - q.origin;
-  const double uu = q.u_edge.squaredNorm(), vv = q.v_edge.squaredNorm();
-  const double a = rel.dot(q.u_edge) / uu, b = rel.dot(q.v_edge) / vv;
-  if (a < 0 || a > 1 || b < 0 || b > 1) return false;
+  if (!InsideQuad(q, o, d, t, &a, &b, &uu, &vv)) return false;
   hit->t = t;
   hit->quad = -1;  // set by the caller, which knows the index
   hit->person = -1;
@@ -177,7 +173,7 @@ bool QuadBvh::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, doub
 }
 
 World::World(const Scene& scene, const Crowd& crowd, TextureLibrary* textures, int day)
-    : scene_(scene), crowd_(crowd), quads_(QuadsOfDay(scene, day)), bvh_(quads_) {
+    : scene_(scene), crowd_(crowd), quads_(QuadsOfDay(scene, day)), bvh_(quads_), sah_(quads_) {
   for (const auto& m : scene.materials) material_textures_.push_back(textures->Get(m.texture, day));
   for (const auto& p : crowd.people()) person_textures_.push_back(textures->Get(p.texture, day));
 }
@@ -187,6 +183,25 @@ bool World::Cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
   bvh_.Intersect(o, d, t_min, hit);
   for (const auto& c : people) IntersectCylinder(c, o, d, t_min, hit);
   return hit->hit();
+}
+
+void World::NearestQuad(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, Hit* hit) const {
+  // A ray with a zero direction component can meet a box face edge-on, where
+  // the slab test's 0 x inf is a NaN: such rays take QuadBvh's path too.
+  const bool regular = std::abs(d.x()) > 1e-300 && std::abs(d.y()) > 1e-300 && std::abs(d.z()) > 1e-300;
+  ReportQuad(regular ? sah_.Intersect(o, d, t_min, hit->t) : NearestQuadSearch(), regular, o, d, t_min, hit);
+}
+
+void World::ReportQuad(const NearestQuadSearch& search, bool complete, const Eigen::Vector3d& o,
+                       const Eigen::Vector3d& d, double t_min, Hit* hit) const {
+  if (complete && !search.tie()) {
+    if (search.quad < 0) return;
+    if (IntersectQuad(quads_[search.quad], o, d, t_min, hit)) {
+      hit->quad = search.quad;
+      return;
+    }
+  }
+  bvh_.Intersect(o, d, t_min, hit);
 }
 
 Eigen::Vector3f World::Albedo(const Hit& hit, double footprint_m) const {

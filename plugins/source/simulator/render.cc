@@ -1,5 +1,7 @@
 #include "render.h"
 
+#include "screen_tiles.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -22,6 +24,7 @@ float PixelNoise(uint64_t seed, uint64_t index) {
   return (sum - 2.f) * 1.7320508f;
 }
 
+constexpr double kMinDistance = 1e-6;  // World::Cast's t_min
 const Eigen::Vector3d kKeyLight = Eigen::Vector3d(0.3, 0.5, 0.81).normalized();
 
 // The people whose bounding sphere intersects the camera's view cone: most of
@@ -69,6 +72,42 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
   const std::vector<Cylinder> visible = VisiblePeople(people, camera, T_world_camera);
   const Eigen::Matrix3d R = T_world_camera.R();
   const Eigen::Vector3d origin = T_world_camera.t;
+  // The fast path: the quads and people each tile of pixels may see.
+  ScreenTiles quad_tiles(camera, T_world_camera, row_begin, row_end);
+  ScreenTiles people_tiles(camera, T_world_camera, row_begin, row_end);
+  const std::vector<Quad>& quads = world.quads();
+  if (!o.reference_raycast) {
+    for (int i = 0; i < static_cast<int>(quads.size()); ++i) {
+      const Quad& q = quads[i];
+      const Eigen::Vector3d corners[4] = {q.origin, q.origin + q.u_edge, q.origin + q.v_edge,
+                                          q.origin + q.u_edge + q.v_edge};
+      quad_tiles.Add(i, corners, 4);
+    }
+    for (int k = 0; k < static_cast<int>(visible.size()); ++k) {
+      const Cylinder& c = visible[k];
+      Eigen::Vector3d corners[8];
+      for (int j = 0; j < 8; ++j)
+        corners[j] = {c.center.x() + (j & 1 ? c.radius : -c.radius), c.center.y() + (j & 2 ? c.radius : -c.radius),
+                      j & 4 ? c.z1 : c.z0};
+      people_tiles.Add(k, corners, 8);
+    }
+  }
+  quad_tiles.Finish(true);     // nearest first: a pixel stops at the first quad beyond its hit
+  people_tiles.Finish(false);  // in Cast's order
+  const auto cast = [&](int x, int y, const Eigen::Vector3d& d, Hit* hit) {
+    if (o.reference_raycast) return world.Cast(origin, d, visible, hit);
+    NearestQuadSearch search;
+    for (const ScreenTiles::Entry* e = quad_tiles.begin(x, y); e != quad_tiles.end(x, y); ++e) {
+      if (e->min_distance > search.t) break;  // this quad and the rest are farther
+      search.Test(quads[e->item], e->item, origin, d, kMinDistance);
+    }
+    // Rays with a zero direction component take QuadBvh's path (World::NearestQuad).
+    const bool regular = std::abs(d.x()) > 1e-300 && std::abs(d.y()) > 1e-300 && std::abs(d.z()) > 1e-300;
+    world.ReportQuad(search, regular, origin, d, kMinDistance, hit);
+    for (const ScreenTiles::Entry* e = people_tiles.begin(x, y); e != people_tiles.end(x, y); ++e)
+      if (!(e->min_distance > hit->t)) IntersectCylinder(visible[e->item], origin, d, kMinDistance, hit);
+    return hit->hit();
+  };
   const double pixel_angle = 1.0 / camera.fx;
   const float scale = static_cast<float>(o.exposure * o.gain);
   for (int y = row_begin; y < row_end; ++y)
@@ -76,7 +115,7 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
       const Eigen::Vector3d d = (R * camera.Ray(x + 0.5, y + 0.5)).normalized();
       Hit hit;
       Eigen::Vector3f color = Eigen::Vector3f::Zero();
-      if (world.Cast(origin, d, visible, &hit)) {
+      if (cast(x, y, d, &hit)) {
         const double cos_view = std::max(0.25, std::abs(hit.normal.dot(d)));
         color = world.Albedo(hit, hit.t * pixel_angle / cos_view);
         if (o.shading) {

@@ -19,6 +19,8 @@ struct RenderOptions {
   double noise_sigma = 1.5;   // read noise in grey levels (before gain)
   uint64_t noise_seed = 0;    // per image
   bool shading = true;        // false: raw albedo (tests)
+  bool reference_raycast = false;  // World::Cast on every pixel (QuadBvh, every visible person):
+                                   // the slow reference the default equals bit for bit (tests, bench)
 };
 
 struct RenderedImage {

@@ -258,9 +258,11 @@ Eigen::Vector3f Texture::Sample(double u, double v, double footprint) const {
   y -= std::floor(y / n) * n;
   int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
   const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-  x0 %= n;
-  y0 %= n;
-  const int x1 = (x0 + 1) % n, y1 = (y0 + 1) % n;
+  // a % n, without the integer division when a is already in [0, n) (nearly always).
+  const auto mod = [n](int a) { return static_cast<unsigned>(a) < static_cast<unsigned>(n) ? a : a % n; };
+  x0 = mod(x0);
+  y0 = mod(y0);
+  const int x1 = mod(x0 + 1), y1 = mod(y0 + 1);
   const auto px = [&](int xx, int yy) {
     const uint8_t* p = &l.rgb[(static_cast<size_t>(yy) * n + xx) * 3];
     return Eigen::Vector3f(p[0], p[1], p[2]);

@@ -1,0 +1,69 @@
+// A second BVH over the scene's quads, built for speed: binned surface-area
+// heuristic (the floor, ceiling and long walls end up near the root and give
+// rays a close bound early), both children's boxes stored in their parent.
+// It finds the nearest quad and tells whether another quad is hit at exactly
+// the same distance. Only then does the order in which quads are tested
+// decide the hit (the first one tested wins): World::CastNear hands such rays
+// to QuadBvh, whose order defines the simulator's output, so every hit equals
+// QuadBvh's bit for bit.
+#ifndef LOCFORGE_SIM_SAH_BVH_H_
+#define LOCFORGE_SIM_SAH_BVH_H_
+
+#include <Eigen/Core>
+#include <limits>
+#include <vector>
+
+#include "scene.h"
+
+namespace locforge::sim {
+
+struct NearestQuadSearch;  // raycast.h
+
+class SahBvh {
+ public:
+  // Keeps a reference to `quads`, which must outlive the BVH.
+  explicit SahBvh(const std::vector<Quad>& quads);
+
+  // The nearest quad along o + t d with t in (t_min, t_max), and its ties.
+  NearestQuadSearch Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
+                              double t_max) const;
+
+  size_t num_nodes() const { return nodes_.size(); }
+  int depth() const { return depth_; }
+
+ private:
+  struct Box {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector3d hi = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
+    void Grow(const Box& b) {
+      lo = lo.cwiseMin(b.lo);
+      hi = hi.cwiseMax(b.hi);
+    }
+    double Area() const;
+  };
+  // Both children's boxes, bounds[axis][0 = lo, 1 = hi][child]; children:
+  // >= 0 an inner node, < 0 the leaf -1 - child.
+  struct Node {
+    double bounds[3][2][2];
+    int child[2] = {-1, -1};
+  };
+  struct Leaf {
+    int first = 0, count = 0;  // range in order_
+  };
+  static constexpr int kMaxDepth = 60;
+
+  int Build(int first, int count, int depth, const std::vector<Box>& boxes,
+            const std::vector<Eigen::Vector3d>& centroids, Box* bounds);
+
+  const std::vector<Quad>& quads_;
+  std::vector<int> order_;
+  std::vector<Node> nodes_;
+  std::vector<Leaf> leaves_;
+  int root_ = -1;
+  Box root_box_;
+  int depth_ = 0;
+};
+
+}  // namespace locforge::sim
+
+#endif  // LOCFORGE_SIM_SAH_BVH_H_
