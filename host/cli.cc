@@ -71,7 +71,7 @@ ${name} substitutes a variable or matrix key inside any value; a value that is
 exactly ${name} takes the variable's value as is (a list stays a list). YAML
 lists give list parameters.
 
---set name=value        overrides a graph variable (or pins a matrix key)
+--set name=value        overrides a graph variable (or pins a matrix key; [a, b] sets its list)
 --set node.param=value  overrides one node's parameter; [a, b] gives a list
 Relative PATH parameters are resolved against the graph file's folder when
 written in the graph, and against the current directory when they come from

@@ -273,7 +273,13 @@ void GraphParser::ApplyVarOverrides(const std::vector<Override>& sets) {
     auto m = std::find_if(matrix_.begin(), matrix_.end(),
                           [&](const auto& kv) { return kv.first == set.key; });
     if (m != matrix_.end()) {
-      m->second = {set.value};  // pins the matrix to this value
+      // A value pins the matrix to it; a list ([0, 1, 2]) replaces its values.
+      const auto value = ParseCommandLineValue(set.value, where, errors_);
+      if (value.is_list && value.items.empty()) {
+        Fail(where, "matrix key '" + set.key + "': expected a value or a non-empty list");
+        continue;
+      }
+      m->second = value.is_list ? value.items : std::vector<std::string>{set.value};
       continue;
     }
     Fail(where, "unknown variable '" + set.key + "'" + Hint(set.key, KnownNames()) +

@@ -133,6 +133,22 @@ nodes:
   EXPECT_EQ(p.graph.variants[0].name, "local=r2d2,global=a");
 }
 
+TEST(GraphParse, SetListReplacesAMatrixKeysValues) {
+  const Parsed p = Parse(R"(locforge: 1
+matrix: {seed: [0, 1, 2, 3], local: [sift]}
+nodes:
+  n: {stage: "features/${local}", params: {s: "${seed}"}}
+)",
+                         {{"seed", "[7, 2]"}});
+  ASSERT_TRUE(p.ok) << p.Text();
+  ASSERT_EQ(p.graph.variants.size(), 2u);
+  EXPECT_EQ(p.graph.variants[0].name, "seed=7,local=sift");
+  EXPECT_EQ(NodeOf(p.graph, "n", 1).params.at("s").value.scalar(), "2");
+  EXPECT_FALSE(Parse("locforge: 1\nmatrix: {seed: [0]}\nnodes:\n  n: {stage: a/b}\n",
+                     {{"seed", "[]"}})
+                   .ok);
+}
+
 TEST(GraphParse, UnknownVariableIsLocated) {
   const Parsed p = Parse(R"(locforge: 1
 vars: {count: 8}

@@ -36,7 +36,7 @@ class PoseGraphSlam : public Stage<PoseGraphStageOptions> {
                    {{"trajectories", "kapture.trajectories",
                      "sensors/trajectories.txt: rig at every scan, cameras at every image (the first sequence's "
                      "part); map.pcd/ply, pose_graph.g2o, trajectories.svg/png, joins.csv, slam.json"}}};
-    meta.version = "0.7.0";
+    meta.version = "0.8.0";
     return meta;
   }
   using Stage::Stage;
@@ -96,6 +96,14 @@ void PoseGraphStageOptions::Declare(ParamSchema<PoseGraphStageOptions>& s) {
         "other's free space").Range(0, 1);
   s.Add("join_min_overlap_m", &O::slam, &SlamOptions::join_min_overlap_m,
         "... over at least this much structure seen by both (m of 0.1 m cells)").Range(0.1, 1e6);
+  s.Add("join_alias_conflict", &O::slam, &SlamOptions::join_alias_conflict,
+        "Repeated structure: a copy of a frame that explains the overlap, turned alike but shifted, with at most "
+        "this conflict ...").Range(0, 1);
+  s.Add("join_alias_min_shift_m", &O::slam, &SlamOptions::join_alias_min_shift_m,
+        "... shifted by at least this much (m), shows the overlap does not fix the translation").Min(1e-3);
+  s.Add("join_max_start_offset_m", &O::slam, &SlamOptions::join_max_start_offset_m,
+        "With repeated structure, only a frame that puts every sequence start of one part within this distance of "
+        "a start of the other is joined (sequences starting at a dock or an entrance; m; 0: none is)").Min(0);
   s.Add("join_rival_conflict_ratio", &O::slam, &SlamOptions::join_rival_conflict_ratio,
         "A distinct frame whose conflict is at most this many times the winner's ...").Range(1, 100);
   s.Add("join_rival_conflict_margin", &O::slam, &SlamOptions::join_rival_conflict_margin, "... plus this fraction ...").Range(0, 1);

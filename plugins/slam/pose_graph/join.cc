@@ -1,5 +1,7 @@
 #include "join.h"
 
+#include <cmath>
+
 #include <algorithm>
 #include <numeric>
 #include <set>
@@ -37,6 +39,11 @@ bool JoinDecisionOptions::Check(std::string* why) const {
     return false;
   };
   if (!(max_conflict >= 0 && max_conflict <= 1)) return fail("max_conflict must be in [0, 1]");
+  if (!(max_start_offset_m >= 0)) return fail("max_start_offset_m must be >= 0");
+  if (!(alias_conflict >= max_conflict && alias_conflict <= 1))
+    return fail("alias_conflict must be in [max_conflict, 1]");
+  if (!(alias_min_shift_m > 0)) return fail("alias_min_shift_m must be > 0");
+  if (!(alias_max_rotation_deg > 0)) return fail("alias_max_rotation_deg must be > 0");
   if (min_agreeing < 1) return fail("min_agreeing must be >= 1");
   if (!(rival_conflict_ratio >= 1)) return fail("rival_conflict_ratio must be >= 1");
   if (!(rival_conflict_margin >= 0)) return fail("rival_conflict_margin must be >= 0");
@@ -72,11 +79,30 @@ std::string Describe(const JoinHypothesis& h) {
 
 }  // namespace
 
+// Two frames turned alike but shifted by more than the clustering's reach:
+// the same overlap read one repeated room apart.
+static bool ShiftedCopies(const JoinHypothesis& x, const JoinHypothesis& y, const JoinDecisionOptions& o) {
+  const double angle = Eigen::AngleAxisd(x.T_A_B.q.conjugate() * y.T_A_B.q).angle() * 180.0 / M_PI;
+  return angle <= o.alias_max_rotation_deg && (x.T_A_B.t - y.T_A_B.t).norm() >= o.alias_min_shift_m;
+}
+
 JoinDecision DecideJoin(const std::vector<JoinHypothesis>& h, const JoinDecisionOptions& o) {
   JoinDecision d;
-  auto eligible = [&](const JoinHypothesis& x) {
+  auto explains = [&](const JoinHypothesis& x) {
     return x.evidence.Conflict() <= o.max_conflict && x.evidence.Agreeing() >= o.min_agreeing;
   };
+  // Repeated structure: a frame that explains the overlap has a shifted copy
+  // that nearly does. The overlap then does not fix the translation; only
+  // frames keeping the starts together are answers (none without the prior).
+  bool repeated = false;
+  for (size_t i = 0; i < h.size() && !repeated; ++i)
+    for (size_t k = 0; k < h.size() && !repeated; ++k)
+      repeated = i != k && explains(h[i]) && h[k].evidence.Conflict() <= o.alias_conflict &&
+                 h[k].evidence.Agreeing() >= o.min_agreeing && ShiftedCopies(h[i], h[k], o);
+  auto near_starts = [&](const JoinHypothesis& x) {
+    return !repeated || (o.max_start_offset_m > 0 && x.start_offset_m <= o.max_start_offset_m);
+  };
+  auto eligible = [&](const JoinHypothesis& x) { return explains(x) && near_starts(x); };
   // The best hypothesis: eligible first, then by quality.
   for (int i = 0; i < static_cast<int>(h.size()); ++i) {
     if (d.winner < 0) {
@@ -92,7 +118,21 @@ JoinDecision DecideJoin(const std::vector<JoinHypothesis>& h, const JoinDecision
   }
   const JoinHypothesis& w = h[d.winner];
   if (!eligible(w)) {
-    d.reason = "no hypothesis explains the overlap (best: " + Describe(w) + ")";
+    if (!explains(w)) {
+      d.reason = "no hypothesis explains the overlap (best: " + Describe(w) + ")";
+    } else {
+      std::ostringstream r;
+      r.precision(3);
+      r << "repeated structure: frames one repeat apart explain the overlap alike, so it does not fix where the "
+           "part lies, and ";
+      if (o.max_start_offset_m > 0)
+        r << "no such frame keeps the sequences' starts within " << o.max_start_offset_m << " m (best: "
+          << Describe(w) << ", start offset " << w.start_offset_m << " m)";
+      else
+        r << "the starts are not used (join_max_start_offset_m 0)";
+      d.status = JoinDecision::Status::kAmbiguous;
+      d.reason = r.str();
+    }
     return d;
   }
   // The closest distinct rival.
@@ -110,6 +150,7 @@ JoinDecision DecideJoin(const std::vector<JoinHypothesis>& h, const JoinDecision
   }
   d.status = JoinDecision::Status::kJoined;
   d.reason = Describe(w);
+  if (repeated) d.reason += " (repeated structure: the one that keeps the sequences' starts together)";
   return d;
 }
 

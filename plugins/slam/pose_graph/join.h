@@ -21,6 +21,8 @@ struct JoinHypothesis {
   std::vector<int> loops;    // candidates (indices) agreeing with it
   int support = 0;           // distinct keyframes of B among them
   JoinEvidence evidence;     // of the whole overlap under T_A_B
+  // Farthest start of a sequence of B from every start of A, under T_A_B (m).
+  double start_offset_m = 0;
 };
 
 // Groups candidates into hypotheses: the best-overlapping unassigned
@@ -31,8 +33,9 @@ std::vector<JoinHypothesis> ClusterHypotheses(const std::vector<JoinCandidate>& 
 struct JoinDecisionOptions {
   // A hypothesis explains the overlap when at most this fraction of the
   // tall structure seen by both maps lies in the other's free space (a right
-  // frame leaves what the maps' drift and moved objects put there) ...
-  double max_conflict = 0.05;
+  // frame leaves what the maps' drift and moved objects put there; a wrong
+  // one in a floor of repeated rooms can leave as little as a few percent) ...
+  double max_conflict = 0.013;
   // ... over at least this many agreeing structure cells (each way).
   int64_t min_agreeing = 200;
   // A distinct hypothesis is a rival, and the join is refused as ambiguous,
@@ -40,6 +43,17 @@ struct JoinDecisionOptions {
   // winner's + rival_conflict_margin (the winner's own conflicts are people
   // and moved objects: a rival within that noise is as good an answer) and
   // it agrees over at least rival_overlap of the winner's cells.
+  // Repeated structure (a floor of identical rooms): a frame that explains
+  // the overlap has a copy turned alike (within alias_max_rotation_deg) but
+  // shifted by at least alias_min_shift_m whose conflict is at most
+  // alias_conflict. The overlap then does not fix the translation, and only
+  // a frame that puts every start of B within max_start_offset_m of a start
+  // of A is an answer (sequences of one recording starting at a dock or an
+  // entrance; 0: no such prior, such joins are refused).
+  double alias_conflict = 0.05;
+  double alias_min_shift_m = 3;
+  double alias_max_rotation_deg = 5;
+  double max_start_offset_m = 0;
   double rival_conflict_ratio = 1.5;
   double rival_conflict_margin = 0.02;
   double rival_overlap = 0.5;

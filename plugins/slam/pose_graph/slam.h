@@ -43,6 +43,7 @@ struct JoinAttempt {
   JoinHypothesis winner, rival;     // when present
   int predicted_found = 0, predicted_tested = 0;
   Pose T_A_B;                       // the frame applied (joined)
+  std::vector<JoinHypothesis> frames;  // every frame considered, with its evidence
 };
 
 // Where every sequence ended up.
@@ -114,6 +115,7 @@ class Slam {
   void Optimize();
   int JoinComponents(int round);
   bool TryJoin(int A, int B, int round);
+  std::vector<Eigen::Vector3d> SequenceStarts(const std::vector<const Keyframe*>& part) const;
   std::vector<const Keyframe*> KeyframesOf(int component) const;
   std::string NameOf(int component) const;
   const FloorGrid& FloorOf(int component);

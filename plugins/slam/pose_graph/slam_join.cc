@@ -3,6 +3,9 @@
 // the check of every join once the graph is optimised.
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
+#include <limits>
+#include <map>
 #include <sstream>
 
 #include "slam.h"
@@ -13,6 +16,15 @@ namespace {
 
 Pose YawPose(double yaw, const Eigen::Vector3d& t = Eigen::Vector3d::Zero()) {
   return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())), t);
+}
+
+// A frame as "x, y, yaw" (m, m, deg), rounded for the log.
+std::string FrameXYYaw(const Pose& T) {
+  const Eigen::Vector3d x = T.R().col(0);
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(2) << T.t.x() << ", " << T.t.y() << ", " << std::setprecision(1)
+    << std::atan2(x.y(), x.x()) * 180.0 / M_PI;
+  return s.str();
 }
 
 std::string Percent(double f) {
@@ -97,6 +109,28 @@ int Slam::JoinComponents(int round) {
   return joined;
 }
 
+// Where each sequence of a part starts (its first keyframe), in the part's frame.
+std::vector<Eigen::Vector3d> Slam::SequenceStarts(const std::vector<const Keyframe*>& part) const {
+  std::map<std::string, const Keyframe*> first;
+  for (const Keyframe* k : part)
+    if (!first.count(k->sequence) || k->timestamp < first[k->sequence]->timestamp) first[k->sequence] = k;
+  std::vector<Eigen::Vector3d> starts;
+  for (const auto& [sequence, k] : first) starts.push_back(graph_.nodes.at(k->id).t);
+  return starts;
+}
+
+// The farthest start of B from its nearest start of A, with B in A's frame by T_A_B.
+static double StartOffset(const std::vector<Eigen::Vector3d>& starts_a, const std::vector<Eigen::Vector3d>& starts_b,
+                          const Pose& T_A_B) {
+  double worst = 0;
+  for (const auto& b : starts_b) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const auto& a : starts_a) nearest = std::min(nearest, (T_A_B * b - a).norm());
+    worst = std::max(worst, nearest);
+  }
+  return worst;
+}
+
 // Joins part B to part A. Candidate loops: seeds (B's keyframes near its
 // start against A's nearest keyframe under every turn about that start:
 // sequences often start at one spot, heading unknown) and places (Scan
@@ -155,18 +189,24 @@ bool Slam::TryJoin(int A, int B, int round) {
     return (graph_.nodes.at(x->id).t - p0).norm() < (graph_.nodes.at(y->id).t - p0).norm();
   });
   int seeds = 0;
-  for (size_t i = 0; i < near_start.size() && seeds < o_.join_seeds; i += o_.loop_stride, ++seeds) {
-    hooks_.check_cancelled();
-    const Keyframe& b = *near_start[i];
-    std::map<int, std::vector<Pose>> guesses;  // a -> guesses
-    for (int h = 0; h < o_.loop_yaw_hypotheses; ++h) {
-      const Pose turn = YawPose(2 * M_PI * h / o_.loop_yaw_hypotheses);
-      const Pose H = Pose(Eigen::Quaterniond::Identity(), p0) * turn * Pose(Eigen::Quaterniond::Identity(), -p0);
-      const Keyframe* a = nearest_a(H * graph_.nodes.at(b.id).t);
-      if (a) guesses[a->id].push_back(graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b.id));
+  auto seed = [&](const std::vector<double>& yaws) {
+    int n = 0;
+    for (size_t i = 0; i < near_start.size() && n < o_.join_seeds; i += o_.loop_stride, ++n) {
+      hooks_.check_cancelled();
+      const Keyframe& b = *near_start[i];
+      std::map<int, std::vector<Pose>> guesses;  // a -> guesses
+      for (double yaw : yaws) {
+        const Pose H = Pose(Eigen::Quaterniond::Identity(), p0) * YawPose(yaw) * Pose(Eigen::Quaterniond::Identity(), -p0);
+        const Keyframe* a = nearest_a(H * graph_.nodes.at(b.id).t);
+        if (a) guesses[a->id].push_back(graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b.id));
+      }
+      for (const auto& [a, g] : guesses) test(keyframes_[a], b, g);
     }
-    for (const auto& [a, g] : guesses) test(keyframes_[a], b, g);
-  }
+    seeds = std::max(seeds, n);
+  };
+  std::vector<double> turns;
+  for (int h = 0; h < o_.loop_yaw_hypotheses; ++h) turns.push_back(2 * M_PI * h / o_.loop_yaw_hypotheses);
+  seed(turns);
   // Places: for every loop_stride-th keyframe of B, A's keyframes nearest by
   // ring key, the best of them by Scan Context distance, checked from the
   // heading that distance found.
@@ -194,6 +234,32 @@ bool Slam::TryJoin(int A, int B, int round) {
     }
   }
 
+  // Headings the places found, tried at the start too: a rough check starts
+  // from the turns above, up to half a step off, and may not reach a heading
+  // between them, while a place elsewhere in a floor of repeated rooms can
+  // find the heading with the wrong translation.
+  std::vector<double> place_yaws;
+  auto new_heading = [&](double yaw, const std::vector<double>& known) {
+    for (double k : known)
+      if (std::abs(std::remainder(yaw - k, 2 * M_PI)) < o_.join_max_rotation_deg * M_PI / 180) return false;
+    return true;
+  };
+  std::vector<double> yaws;
+  for (const auto& c : candidates) {
+    const Eigen::Vector3d x = c.T_A_B.R().col(0);
+    yaws.push_back(std::atan2(x.y(), x.x()));
+  }
+  for (size_t i = 0; i < yaws.size(); ++i) {
+    // A heading two loops agree on (one loop alone is as often noise).
+    if (new_heading(yaws[i], {yaws.begin(), yaws.begin() + i}) &&
+        !new_heading(yaws[i], {yaws.begin() + i + 1, yaws.end()})) {
+      std::vector<double> known = turns;
+      known.insert(known.end(), place_yaws.begin(), place_yaws.end());
+      if (new_heading(yaws[i], known)) place_yaws.push_back(yaws[i]);
+    }
+  }
+  seed(place_yaws);
+
   // The frames suggested, judged by the whole overlap.
   JoinConsensusOptions agreement;
   agreement.max_translation = o_.join_max_translation_m;
@@ -202,8 +268,14 @@ bool Slam::TryJoin(int A, int B, int round) {
   const FloorGrid& fa = FloorOf(A);
   const FloorGrid& fb = FloorOf(B);
   for (auto& h : hypotheses) h.evidence = EvaluateJoin(fa, fb, h.T_A_B);
+  const std::vector<Eigen::Vector3d> starts_a = SequenceStarts(ka), starts_b = SequenceStarts(kb);
+  for (auto& h : hypotheses) h.start_offset_m = StartOffset(starts_a, starts_b, h.T_A_B);
   JoinDecisionOptions jo;
   jo.max_conflict = o_.join_max_conflict;
+  jo.max_start_offset_m = o_.join_max_start_offset_m;
+  jo.alias_conflict = std::max(o_.join_alias_conflict, o_.join_max_conflict);
+  jo.alias_min_shift_m = o_.join_alias_min_shift_m;
+  jo.alias_max_rotation_deg = o_.join_max_rotation_deg;
   jo.min_agreeing = std::max<int64_t>(1, std::llround(o_.join_min_overlap_m / fa.options().cell_m));
   jo.rival_conflict_ratio = o_.join_rival_conflict_ratio;
   jo.rival_conflict_margin = o_.join_rival_conflict_margin;
@@ -278,9 +350,11 @@ bool Slam::TryJoin(int A, int B, int round) {
   if (at.has_rival)
     log << "; rival: conflict " << Percent(at.rival.evidence.Conflict()) << ", " << at.rival.evidence.Agreeing()
         << " cells";
-  log << "; frames (conflict, agreeing, support):";
+  log << "; frames (conflict, agreeing, support; x m, y m, yaw deg of b's frame in a's; farthest start of b from a's):";
   for (const auto& h : hypotheses)
-    log << " (" << Percent(h.evidence.Conflict()) << ", " << h.evidence.Agreeing() << ", " << h.support << ")";
+    log << " (" << Percent(h.evidence.Conflict()) << ", " << h.evidence.Agreeing() << ", " << h.support << "; "
+        << FrameXYYaw(h.T_A_B) << "; start " << std::setprecision(3) << h.start_offset_m << " m)";
+  at.frames = hypotheses;
   if (at.predicted_tested > 0) log << "; predicted loops " << at.predicted_found << " of " << at.predicted_tested;
   log << ": " << (d.status == JoinDecision::Status::kJoined ? "joined" : "refused, " + d.reason);
   hooks_.info(log.str());

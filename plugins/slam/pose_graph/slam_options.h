@@ -59,8 +59,16 @@ struct SlamOptions {
   int join_min_verified = 2;          // ... found where the frame predicted them
   double join_max_translation_m = 1.0;  // two loops suggest one frame: their keyframes within this ...
   double join_max_rotation_deg = 5;     // ... and their rotations within this
-  double join_max_conflict = 0.05;      // fraction of shared tall structure in the other map's free space
+  double join_max_conflict = 0.013;     // fraction of shared tall structure in the other map's free space
   double join_min_overlap_m = 20;       // structure seen by both maps (cells x cell size)
+  // Repeated structure: a frame that explains the overlap has a copy turned
+  // alike (join_max_rotation_deg) but shifted by join_alias_min_shift_m with
+  // a conflict of at most join_alias_conflict. Then only a frame that keeps
+  // the sequences' starts within join_max_start_offset_m (a dock, an
+  // entrance) is joined; 0: none is.
+  double join_alias_conflict = 0.05;
+  double join_alias_min_shift_m = 3;
+  double join_max_start_offset_m = 5;
   double join_rival_conflict_ratio = 1.5;   // a distinct frame with a conflict below ratio x the winner's ...
   double join_rival_conflict_margin = 0.02; // ... + margin ...
   double join_rival_overlap = 0.5;          // ... and this fraction of its overlap makes the join ambiguous

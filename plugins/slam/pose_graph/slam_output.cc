@@ -1,5 +1,6 @@
 #include "slam_output.h"
 
+#include <cmath>
 #include <set>
 #include <sstream>
 
@@ -183,7 +184,16 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
     if (at.has_winner) joins_json << ", \"best\": " << EvidenceJson(at.winner.evidence);
     if (at.has_rival) joins_json << ", \"rival\": " << EvidenceJson(at.rival.evidence);
     joins_json << ", \"predicted_found\": " << at.predicted_found << ", \"predicted_tested\": " << at.predicted_tested
-               << "}";
+               << ", \"frames\": [";
+    for (size_t i = 0; i < at.frames.size(); ++i) {
+      const JoinHypothesis& h = at.frames[i];
+      const Eigen::Vector3d x = h.T_A_B.R().col(0);
+      joins_json << (i ? ", " : "") << "{\"x\": " << h.T_A_B.t.x() << ", \"y\": " << h.T_A_B.t.y()
+                 << ", \"z\": " << h.T_A_B.t.z() << ", \"yaw_deg\": " << std::atan2(x.y(), x.x()) * 180.0 / M_PI
+                 << ", \"start_offset_m\": " << h.start_offset_m << ", \"support\": " << h.support
+                 << ", \"evidence\": " << EvidenceJson(h.evidence) << "}";
+    }
+    joins_json << "]}";
   }
   const SlamStats& st = slam.stats();
   StepTimes steps = st.steps;

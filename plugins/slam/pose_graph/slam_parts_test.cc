@@ -143,6 +143,41 @@ TEST(JoinDecision, RefusesTwoFramesThatBothExplainIt) {
   EXPECT_EQ(clear.winner, 1);
 }
 
+TEST(JoinDecision, RepeatedRoomsAreDecidedByTheStartsOrRefused) {
+  JoinDecisionOptions o;
+  // As on the simulator's large floor (a grid of identical blocks): a frame
+  // one block away explains the overlap (0.15 % conflict), a copy of it one
+  // more block away nearly does (2.5 %): the overlap does not fix the
+  // translation. Only where the frame puts the sequences' starts tells.
+  auto at = [](JoinHypothesis h, double x, double yaw_deg, double start_offset) {
+    h.T_A_B = Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw_deg * M_PI / 180, Eigen::Vector3d::UnitZ())),
+                   Eigen::Vector3d(x, 0, 0));
+    h.start_offset_m = start_offset;
+    return h;
+  };
+  const JoinHypothesis far = at(Hypothesis(3451, 5), 32, 164.4, 31.7);
+  const JoinHypothesis copy = at(Hypothesis(3285, 80), 16, 164.9, 15.6);
+  const JoinHypothesis turned = at(Hypothesis(2467, 56), 0.2, -15, 0.3);  // 180 deg off, 2.3 %
+  const JoinHypothesis right = at(Hypothesis(3300, 0), 0.1, 165, 0.2);
+  // Without its copy the shifted frame would be a plausible wrong answer.
+  EXPECT_EQ(DecideJoin({far}, o).status, JoinDecision::Status::kJoined);
+  // With it: refused, with or without the starts prior, when no frame keeps the starts together.
+  const JoinDecision refused = DecideJoin({far, copy, turned}, o);
+  EXPECT_EQ(refused.status, JoinDecision::Status::kAmbiguous);
+  EXPECT_NE(refused.reason.find("repeated structure"), std::string::npos) << refused.reason;
+  o.max_start_offset_m = 5;
+  EXPECT_EQ(DecideJoin({far, copy, turned}, o).status, JoinDecision::Status::kAmbiguous);
+  // The right frame among them: joined, the shifted ones are no rivals.
+  const JoinDecision d = DecideJoin({far, copy, turned, right}, o);
+  EXPECT_EQ(d.status, JoinDecision::Status::kJoined) << d.reason;
+  EXPECT_EQ(d.winner, 3);
+  EXPECT_EQ(d.rival, -1);
+  // Without repeated structure the starts are not consulted (queries start anywhere).
+  EXPECT_EQ(DecideJoin({at(Hypothesis(989, 0), 9, 40, 9.8), turned}, o).status, JoinDecision::Status::kJoined);
+  o.max_start_offset_m = -1;
+  EXPECT_FALSE(o.Check());
+}
+
 TEST(JoinDecision, RefusesWithoutOverlapOrWhenEveryFrameConflicts) {
   JoinDecisionOptions o;
   EXPECT_EQ(DecideJoin({}, o).status, JoinDecision::Status::kNoEvidence);
