@@ -366,6 +366,31 @@ nodes:
   EXPECT_NE(r.err.find("unknown variant (did you mean 'seed=1,bins="), std::string::npos) << r.err;
 }
 
+TEST_F(Cli, CollectTabulatesEveryVariantInNumberOrderWithASummary) {
+  Write("ws/variants/seed=10/nodes/joins/summary.json", R"({"right": 2, "wrong": 0, "ate_m": 0.004, "e": {"a": [1, 2]}})");
+  Write("ws/variants/seed=2/nodes/joins/summary.json", R"({"right": 1, "wrong": 1, "ate_m": 0.002, "e": {"a": [3, 4]}})");
+  fs::create_directories(dir_ / "ws/variants/seed=3/nodes/joins");  // not run yet: no file
+  Result r = Run("collect ws joins/summary.json --summary");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_EQ(r.out,
+            "variant,right,wrong,ate_m,e.a.0,e.a.1\n"
+            "seed=2,1,1,0.002,3,4\n"
+            "seed=10,2,0,0.004,1,2\n"
+            "(count),2,2,2,2,2\n"
+            "(mean),1.5,0.5,0.003,2,3\n"
+            "(min),1,0,0.002,1,2\n"
+            "(max),2,1,0.004,3,4\n")
+      << r.out;
+  EXPECT_NE(r.err.find("seed=3"), std::string::npos) << r.err;  // the missing file is named
+  r = Run("collect ws joins/summary.json --format md -o table.md");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(ReadAll(dir_ / "table.md").find("| seed=2 | 1 | 1 | 0.002 | 3 | 4 |"), std::string::npos);
+  Write("ws/variants/seed=4/nodes/joins/summary.json", "{not json");
+  r = Run("collect ws joins/summary.json");
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("seed=4/nodes/joins/summary.json"), std::string::npos) << r.err;
+}
+
 TEST_F(Cli, FailingStageExitsOneNamingTheNode) {
   Write("bad/x.png", "not a png");
   Write("list.yaml", R"(locforge: 1

@@ -86,8 +86,9 @@ void AddJson(const fs::path& file, const std::string& variant, Table* t) {
   }
   std::vector<std::pair<std::string, std::string>> fields;
   Flatten(root, "", &fields);
+  const int variant_column = t->Column("variant");  // may add the column: size the row after
   std::vector<std::string> row(t->columns.size());
-  row[t->Column("variant")] = variant;
+  row[variant_column] = variant;
   for (const auto& [k, v] : fields) {
     const int c = t->Column(k);
     if (static_cast<int>(row.size()) <= c) row.resize(c + 1);
@@ -116,7 +117,7 @@ void AddCsv(const fs::path& file, const std::string& variant, Table* t) {
       throw InputError(file.string(), n, "", "expected " + std::to_string(header.size()) + " fields, got " +
                                                  std::to_string(f.size()));
     std::vector<std::string> row(t->columns.size());
-    row[t->Column("variant")] = variant;
+    row[t->Column("variant")] = variant;  // every column exists since the header
     for (size_t i = 0; i < f.size(); ++i) row[t->Column(header[i])] = f[i];
     t->rows.push_back(row);
   }
@@ -226,11 +227,15 @@ int CollectCommand(const Args& args) {
   const std::string node = rel.begin()->string();
   const fs::path inside = rel.lexically_relative(node);
   std::vector<std::pair<std::string, fs::path>> files;  // variant -> file
+  std::vector<std::string> missing;                     // variants without it (not run, or failed)
   std::error_code ec;
   if (fs::is_directory(workspace / "variants", ec)) {
     for (const auto& v : fs::directory_iterator(workspace / "variants", ec)) {
       const fs::path f = v.path() / "nodes" / node / inside;
-      if (fs::exists(f, ec)) files.emplace_back(v.path().filename().string(), f);
+      if (fs::exists(f, ec))
+        files.emplace_back(v.path().filename().string(), f);
+      else
+        missing.push_back(v.path().filename().string());
     }
   } else if (fs::exists(workspace / "nodes" / node / inside, ec)) {
     files.emplace_back("-", workspace / "nodes" / node / inside);
@@ -241,6 +246,10 @@ int CollectCommand(const Args& args) {
     return 1;
   }
   std::sort(files.begin(), files.end(), [](const auto& a, const auto& b) { return NaturalLess(a.first, b.first); });
+  std::sort(missing.begin(), missing.end(), NaturalLess);
+  for (const auto& v : missing)
+    std::cerr << "locforge collect: " << v << ": no " << (fs::path(node) / inside).string()
+              << " (not run yet, or failed): left out\n";
   try {
     Table t;
     const bool json = inside.extension() == ".json";
