@@ -15,7 +15,7 @@
 #include "locforge/error.h"
 #include "locforge/fs.h"
 #include "locforge/version.h"
-#include "sha256.h"
+#include "locforge/sha256.h"
 
 namespace locforge::host {
 

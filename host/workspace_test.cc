@@ -10,7 +10,7 @@
 #include <fstream>
 #include <thread>
 
-#include "sha256.h"
+#include "locforge/sha256.h"
 #include "test_stages.h"
 #include "testing.h"
 

@@ -1,8 +1,8 @@
-#include "sha256.h"
+#include "locforge/sha256.h"
 
 #include <cstring>
 
-namespace locforge::host {
+namespace locforge {
 namespace {
 
 constexpr uint32_t kRound[64] = {
@@ -89,4 +89,4 @@ std::string Sha256Hex(std::string_view data) {
   return sha.HexDigest();
 }
 
-}  // namespace locforge::host
+}  // namespace locforge

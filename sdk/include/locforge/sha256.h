@@ -1,13 +1,13 @@
-// SHA-256 (FIPS 180-4), used for the cache keys of graph nodes.
-#ifndef LOCFORGE_HOST_SHA256_H_
-#define LOCFORGE_HOST_SHA256_H_
+// SHA-256 (FIPS 180-4): the cache keys of graph nodes, checksums of outputs in tests.
+#ifndef LOCFORGE_SHA256_H_
+#define LOCFORGE_SHA256_H_
 
 #include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
 
-namespace locforge::host {
+namespace locforge {
 
 class Sha256 {
  public:
@@ -26,6 +26,6 @@ class Sha256 {
 
 std::string Sha256Hex(std::string_view data);
 
-}  // namespace locforge::host
+}  // namespace locforge
 
-#endif  // LOCFORGE_HOST_SHA256_H_
+#endif  // LOCFORGE_SHA256_H_
