@@ -226,7 +226,14 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     const runtime::RunResult r = instance.Run(run);
     report->items = r.items_total;
     measure();
+    std::optional<FileLock> publish;
     if (sharded) {
+      publish.emplace(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
+      if (Workspace::IsComplete(dir)) {
+        reporter_.NodeFinished(label, "ran (published by another shard)", r.items_total,
+                               report->seconds);
+        return {"ran", dir};
+      }
       // This shard's items are done (and, for the last one, finalized): its
       // record tells a re-submission to skip it and the manifest its cost.
       ShardRecord record;
@@ -241,16 +248,7 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
       record.host = host;
       record.started = started;
       record.finished = UtcNow();
-      if (!Workspace::IsComplete(dir)) WriteShardRecord(partial, record);
-    }
-    std::optional<FileLock> publish;
-    if (sharded) {
-      publish.emplace(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
-      if (Workspace::IsComplete(dir)) {
-        reporter_.NodeFinished(label, "ran (published by another shard)", r.items_total,
-                               report->seconds);
-        return {"ran", dir};
-      }
+      WriteShardRecord(partial, record);
     }
     if (!r.complete) {
       result->waiting_for_shards = true;
@@ -267,10 +265,12 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     m.peak_rss_bytes = report->peak_rss_bytes;
     m.started = started;
     if (sharded) {
+      // The shards' records (one that finished at the same moment as this
+      // one may not have written its record yet: then it is not counted).
       const auto records = ReadShardRecords(partial, options_.shard_count);
-      if (static_cast<int>(records.size()) == options_.shard_count) {
+      if (!records.empty()) {
         m = {};
-        m.shards = options_.shard_count;
+        m.shards = static_cast<int>(records.size());
         m.started = started;
         for (const auto& rec : records) {
           m.items += rec.items;

@@ -89,7 +89,10 @@ ReturnToService=2
 MinJobAge=3600
 KillWait=5
 InactiveLimit=0
-NodeName=$host NodeAddr=127.0.0.1 CPUs=$cpus RealMemory=4096 State=UNKNOWN
+# Memory is not enforced here (no cgroups) and config_overrides makes slurmd
+# take this figure as is: large enough that locforge's built-in per-stage
+# requests (up to 64G) are submitted unchanged.
+NodeName=$host NodeAddr=127.0.0.1 CPUs=$cpus RealMemory=131072 State=UNKNOWN
 PartitionName=test Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF
 export SLURM_CONF="$dir/slurm.conf"
