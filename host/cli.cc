@@ -23,6 +23,7 @@ Commands:
   kapture ...                   Kapture dataset tools
   colmap ...                    COLMAP model tools
   collect W NODE/FILE           One table of a node's result over a matrix run's variants
+  status W                      Per-node state and cost (a Slurm submission's jobs)
   help [COMMAND]                This help, or a command's
 
 Options:
@@ -109,9 +110,28 @@ Options:
                       wait for the other shards (run without --shard to finish)
   --variant NAME      Run only this matrix variant (e.g. bins=8)
   --plugin-path DIR   Also load the plugins of DIR (repeatable)
+  --node NODE         Run only NODE; its inputs must be complete (a job's run)
+  --executor E        local (default): run here; slurm: submit one job per
+                      node not complete (DIR must be on a shared file system)
+
+With --executor slurm:
+  --shards N          Array tasks of each per-item node (default 4); a job
+                      runs `locforge run GRAPH --node NODE --shard array/N`
+  --slurm-opt [SEL:]OPTION=VALUE
+                      An sbatch long option for the jobs (repeatable), e.g.
+                      partition=cpu, mem=16G, time=2:00:00, gt:cpus-per-task=8;
+                      SEL (default: all jobs) is a stage kind, a stage id or a
+                      node; over the graph's `slurm:` section and the defaults
+  --wait              Follow the jobs to the end (Ctrl-C cancels them with
+                      scancel); else see `locforge status DIR`
+  --poll SECONDS      Interval between squeue calls with --wait (default 10)
+Jobs wait for their inputs' jobs (afterok). Complete nodes are not submitted;
+of a partly done per-item node only the shards that did not finish. Job
+logs: DIR/logs/slurm/; submissions: DIR/slurm/.
 
 Ctrl-C stops cleanly: finished items are kept and the next run resumes.
-Exit codes: 0 ok (or this shard done), 1 a stage failed, 2 bad usage or graph.
+Exit codes: 0 ok (or this shard done, or submitted), 1 a stage or job failed,
+2 bad usage or graph.
 
 )";
 
@@ -201,6 +221,7 @@ int Main(const Args& args) {
       return 0;
     }
     if (rest.front() == "collect") return CollectCommand({"--help"});
+    if (rest.front() == "status") return StatusCommand({"--help"});
     if (rest.front() == "kapture" || rest.front() == "colmap")
       return rest.front() == "kapture" ? KaptureCommand({"--help"}) : ColmapCommand({"--help"});
     const std::string text = HelpText(rest.front());
@@ -218,9 +239,10 @@ int Main(const Args& args) {
   if (command == "run") return RunCommand(rest);
   if (command == "kapture") return KaptureCommand(rest);
   if (command == "collect") return CollectCommand(rest);
+  if (command == "status") return StatusCommand(rest);
   if (command == "colmap") return ColmapCommand(rest);
-  const std::vector<std::string> commands = {"plugins", "validate", "run",  "kapture",
-                                             "colmap",  "collect",  "help"};
+  const std::vector<std::string> commands = {"plugins", "validate", "run",    "kapture",
+                                             "colmap",  "collect",  "status", "help"};
   const std::string hint = DidYouMean(command, commands);
   std::cerr << "locforge: unknown command '" << command << "'"
             << (hint.empty() ? "" : " (did you mean '" + hint + "'?)")

@@ -11,6 +11,7 @@
 #include "executor.h"
 #include "graph.h"
 #include "locforge/params.h"
+#include "slurm.h"
 
 namespace locforge::host {
 
@@ -25,10 +26,20 @@ struct GraphArgs {
   int threads = 0;
   bool force = false;
   int shard_index = 0, shard_count = 1;
+  bool shard_from_array = false;  // --shard array/N: I from $SLURM_ARRAY_TASK_ID
   std::string variant;
+  // Scheduler (--executor slurm) and its jobs (--node)
+  std::string executor = "local";
+  int shards = 4;
+  bool shards_given = false;
+  std::vector<SchedulerSetting> slurm_settings;
+  bool wait = false;
+  double poll_seconds = 10;
+  std::string only_node, expect_key;
+  std::vector<std::string> forward;  // what each job repeats: --set, --plugin-path
 };
 
-bool ParseShard(const std::string& text, int* index, int* count) {
+bool ParseShardNumbers(const std::string& text, int* index, int* count) {
   const size_t slash = text.find('/');
   int64_t i = 0, n = 0;
   if (slash == std::string::npos || !ParseInt(text.substr(0, slash), &i) ||
@@ -37,6 +48,14 @@ bool ParseShard(const std::string& text, int* index, int* count) {
   *index = static_cast<int>(i);
   *count = static_cast<int>(n);
   return true;
+}
+
+// "I/N", or "array/N" in a Slurm array job (I = $SLURM_ARRAY_TASK_ID).
+bool ParseShard(const std::string& text, int* index, int* count, bool* from_array) {
+  *from_array = text.rfind("array/", 0) == 0;
+  if (!*from_array) return ParseShardNumbers(text, index, count);
+  const char* task = std::getenv("SLURM_ARRAY_TASK_ID");
+  return task && *task && ParseShardNumbers(task + text.substr(5), index, count);
 }
 
 // Parses the arguments of validate (run=false) or run. Returns -1 when fine,
@@ -50,8 +69,10 @@ int ParseArgs(const std::string& command, const Args& args, bool run, GraphArgs*
         if (!ParseOverride(v, &o))
           return UsageError(command, "--set expects KEY=VALUE, got '" + v + "'");
         out->sets.push_back(o);
+        out->forward.insert(out->forward.end(), {"--set", v});
       } else if (TakeOption(args, &i, "--plugin-path", &v)) {
         out->plugin_paths.push_back(fs::absolute(v));
+        out->forward.insert(out->forward.end(), {"--plugin-path", fs::absolute(v).string()});
       } else if (run && TakeOption(args, &i, "--workspace", &v)) {
         out->workspace = v;
       } else if (run && TakeOption(args, &i, "--threads", &v)) {
@@ -60,17 +81,51 @@ int ParseArgs(const std::string& command, const Args& args, bool run, GraphArgs*
           return UsageError(command, "--threads expects a number from 1 to 4096, got '" + v + "'");
         out->threads = static_cast<int>(n);
       } else if (run && TakeOption(args, &i, "--shard", &v)) {
-        if (!ParseShard(v, &out->shard_index, &out->shard_count))
-          return UsageError(command, "--shard expects I/N with 0 <= I < N, got '" + v + "'");
+        if (!ParseShard(v, &out->shard_index, &out->shard_count, &out->shard_from_array))
+          return UsageError(command, out->shard_from_array
+                                         ? "--shard array/N needs $SLURM_ARRAY_TASK_ID (a Slurm "
+                                           "array task) from 0 to N-1, got '" +
+                                               std::string(std::getenv("SLURM_ARRAY_TASK_ID")
+                                                               ? std::getenv("SLURM_ARRAY_TASK_ID")
+                                                               : "") +
+                                               "'"
+                                         : "--shard expects I/N with 0 <= I < N, got '" + v + "'");
       } else if (run && TakeOption(args, &i, "--variant", &v)) {
         out->variant = v;
       } else if (run && args[i] == "--force") {
         out->force = true;
+      } else if (run && TakeOption(args, &i, "--executor", &v)) {
+        if (v != "local" && v != "slurm")
+          return UsageError(command, "--executor expects local or slurm, got '" + v + "'");
+        out->executor = v;
+      } else if (run && TakeOption(args, &i, "--shards", &v)) {
+        int64_t n = 0;
+        if (!ParseInt(v, &n) || n < 1 || n > 100000)
+          return UsageError(command, "--shards expects a number from 1 to 100000, got '" + v + "'");
+        out->shards = static_cast<int>(n);
+        out->shards_given = true;
+      } else if (run && TakeOption(args, &i, "--slurm-opt", &v)) {
+        SchedulerSetting setting;
+        if (!ParseSchedulerSetting(v, &setting))
+          return UsageError(command, "--slurm-opt expects [SELECTOR:]OPTION=VALUE, got '" + v + "'");
+        out->slurm_settings.push_back(setting);
+      } else if (run && args[i] == "--wait") {
+        out->wait = true;
+      } else if (run && TakeOption(args, &i, "--poll", &v)) {
+        int64_t n = 0;
+        if (!ParseInt(v, &n) || n < 1 || n > 3600)
+          return UsageError(command, "--poll expects seconds from 1 to 3600, got '" + v + "'");
+        out->poll_seconds = static_cast<double>(n);
+      } else if (run && TakeOption(args, &i, "--node", &v)) {
+        out->only_node = v;
+      } else if (run && TakeOption(args, &i, "--expect-key", &v)) {
+        out->expect_key = v;
       } else if (args[i].rfind("-", 0) == 0) {
         std::vector<std::string> known = {"--set", "--plugin-path", "--help"};
         if (run)
           known.insert(known.end(),
-                       {"--workspace", "--threads", "--force", "--shard", "--variant"});
+                       {"--workspace", "--threads", "--force", "--shard", "--variant", "--executor",
+                        "--shards", "--slurm-opt", "--wait", "--poll", "--node", "--expect-key"});
         const std::string hint = DidYouMean(args[i], known);
         return UsageError(command, "unknown option '" + args[i] + "'" +
                                        (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
@@ -87,13 +142,34 @@ int ParseArgs(const std::string& command, const Args& args, bool run, GraphArgs*
   if (run && out->workspace.empty()) return UsageError(command, "--workspace DIR is required");
   if (out->force && out->shard_count > 1)
     return UsageError(command, "--force cannot be combined with --shard (shards share progress)");
+  const bool slurm = out->executor == "slurm";
+  if (!slurm) {
+    for (const auto& [given, option] :
+         {std::pair{out->shards_given, "--shards"}, {!out->slurm_settings.empty(), "--slurm-opt"},
+          {out->wait, "--wait"}})
+      if (given)
+        return UsageError(command, std::string(option) + " needs --executor slurm");
+  } else {
+    if (out->shard_count > 1 || !out->only_node.empty())
+      return UsageError(command, "--executor slurm submits every node and shard itself: drop "
+                                 "--shard and --node");
+    if (out->force)
+      return UsageError(command, "--force cannot be combined with --executor slurm (remove the "
+                                 "nodes' folders from the workspace cache instead)");
+    if (out->threads > 0)
+      return UsageError(command, "with --executor slurm, threads follow each job's "
+                                 "cpus-per-task: use --slurm-opt cpus-per-task=N");
+  }
+  if (!out->expect_key.empty() && out->only_node.empty())
+    return UsageError(command, "--expect-key needs --node");
   return -1;
 }
 
 // Parses, loads plugins and validates every selected variant. Prints all
 // problems; returns false when there were any.
 bool PrepareGraph(const GraphArgs& args, runtime::Registry* registry,
-                  std::vector<ResolvedGraph>* resolved, size_t* node_count) {
+                  std::vector<ResolvedGraph>* resolved, size_t* node_count,
+                  std::vector<SchedulerSetting>* slurm = nullptr) {
   Graph graph;
   Diagnostics errors;
   auto print = [&errors] {
@@ -138,6 +214,13 @@ bool PrepareGraph(const GraphArgs& args, runtime::Registry* registry,
       resolved->push_back(std::move(r));
     }
   }
+  // The `slurm:` section is checked by every command (a typo must not wait
+  // for the first submission); --slurm-opt only where given.
+  if (!resolved->empty()) {
+    CheckSchedulerSettings(graph.slurm, *resolved, &errors);
+    CheckSchedulerSettings(args.slurm_settings, *resolved, &errors);
+  }
+  if (slurm) *slurm = graph.slurm;
   if (!errors.empty()) return print();
   return true;
 }
@@ -147,6 +230,76 @@ std::atomic<bool> g_cancel{false};
 extern "C" void OnInterrupt(int signal) {
   g_cancel.store(true);
   std::signal(signal, SIG_DFL);  // a second Ctrl-C kills at once
+}
+
+// --executor slurm: submits, then (--wait) follows the jobs to the end.
+int SubmitAndFollow(const GraphArgs& ga, const std::vector<ResolvedGraph>& resolved,
+                    const std::vector<SchedulerSetting>& graph_slurm, const Workspace& workspace,
+                    Reporter& reporter) {
+  SlurmOptions so;
+  so.shards = ga.shards;
+  so.settings = ga.slurm_settings;
+  so.graph = fs::absolute(ga.graph).lexically_normal();
+  so.forward = ga.forward;
+  std::error_code ec;
+  so.locforge = fs::canonical("/proc/self/exe", ec);
+  so.cwd = fs::current_path();
+  Submission sub;
+  try {
+    sub = SubmitToSlurm(workspace, resolved, graph_slurm, so, reporter);
+  } catch (const std::exception& e) {
+    reporter.Line(std::string("error: ") + e.what());
+    return 1;
+  }
+  size_t submitted = 0;
+  for (const auto& j : sub.jobs) submitted += j.job_id != "-" && !j.log.empty();
+  reporter.Line(std::to_string(submitted) + " jobs submitted, " +
+                std::to_string(sub.jobs.size() - submitted) + " nodes cached; record: " +
+                sub.file.string());
+  if (!ga.wait) {
+    std::cout << FormatSlurmStatus(QuerySlurmStatus(workspace, sub));
+    std::cout << "follow with: locforge status " << workspace.root().string() << " --wait\n";
+    return 0;
+  }
+  g_cancel.store(false);
+  std::signal(SIGINT, OnInterrupt);
+  std::signal(SIGTERM, OnInterrupt);
+  bool cancelled = false;
+  const auto states = WaitForSlurm(workspace, sub, ga.poll_seconds, &g_cancel, reporter, &cancelled);
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  const std::string table = FormatSlurmStatus(states);
+  std::cout << table;
+  reporter.FileOnly("\n" + table);
+  bool ok = !cancelled;
+  std::vector<std::string> failures;
+  std::map<std::string, bool> complete;  // variant/node -> folder complete
+  for (const auto& s : states) {
+    const bool done = s.state == "done" || s.state == "cached";
+    ok &= done;
+    complete[s.job.variant + "/" + s.job.node] = done;
+    if (done)  // nodes shared by variants: the job linked its own variant's
+      workspace.Link(s.job.variant, s.job.node,
+                     workspace.root() / "cache" / (s.job.node + "-" + s.job.key16));
+    failures.insert(failures.end(), s.failures.begin(), s.failures.end());
+  }
+  std::vector<std::string> outputs;
+  for (const auto& g : resolved)
+    for (const auto& sink : g.sinks)
+      if (complete[g.variant + "/" + sink]) outputs.push_back(workspace.LinkPath(g.variant, sink).string());
+  if (!outputs.empty()) {
+    std::cout << "outputs:\n";
+    for (const auto& o : outputs) std::cout << "  " << o << "\n";
+  }
+  if (ok) return 0;
+  for (const auto& f : failures) reporter.Line("error: " + f);
+  if (cancelled)
+    reporter.Line("error: interrupted; the jobs were cancelled. Finished nodes, shards and items "
+                  "are kept: submit again to resume");
+  else
+    reporter.Line("error: the run did not finish (" + std::to_string(failures.size()) +
+                  " failed jobs); fix the cause and submit again: only what is missing runs");
+  return 1;
 }
 
 }  // namespace
@@ -179,7 +332,8 @@ int RunCommand(const Args& args) {
   runtime::Registry registry;
   std::vector<ResolvedGraph> resolved;
   size_t nodes = 0;
-  if (!PrepareGraph(ga, &registry, &resolved, &nodes)) return 2;
+  std::vector<SchedulerSetting> graph_slurm;
+  if (!PrepareGraph(ga, &registry, &resolved, &nodes, &graph_slurm)) return 2;
   runtime::SetComponentRegistry(&registry);
 
   std::unique_ptr<Workspace> workspace;
@@ -199,7 +353,11 @@ int RunCommand(const Args& args) {
   for (const auto& p : registry.problems())
     reporter.FileOnly("warning: plugin " + p.file.string() + " refused and skipped: " + p.message);
 
+  if (ga.executor == "slurm") return SubmitAndFollow(ga, resolved, graph_slurm, *workspace, reporter);
+
   ExecOptions options;
+  options.only_node = ga.only_node;
+  options.expect_key = ga.expect_key;
   options.threads = ga.threads > 0
                         ? ga.threads
                         : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));

@@ -1,5 +1,8 @@
 #include "executor.h"
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -7,6 +10,7 @@
 #include <set>
 
 #include "locforge/error.h"
+#include "usage.h"
 
 namespace locforge::host {
 
@@ -40,14 +44,54 @@ NodeReport NewReport(const std::string& variant, const ResolvedNode& node) {
 
 ExecResult Executor::Run(const std::vector<ResolvedGraph>& variants) {
   ExecResult result;
+  const bool only = !options_.only_node.empty();
+  bool only_found = false;
   for (const auto& graph : variants) {
     std::map<std::string, std::string> keys;  // node -> cache key
     std::set<std::string> unavailable;        // nodes without a complete folder
     for (const auto& node : graph.nodes) {
       keys[node.name] = CacheKey(node, keys);
+      if (only && (node.name != options_.only_node || only_found)) {
+        // Another job's node: an input when complete, never computed here.
+        const fs::path dir = workspace_.NodeDir(node.name, keys[node.name]);
+        if (Workspace::IsComplete(dir)) {
+          folders_[graph.variant + "/" + node.name] = dir;
+          workspace_.Link(graph.variant, node.name, dir);
+        } else {
+          unavailable.insert(node.name);
+        }
+        continue;
+      }
+      NodeReport report = NewReport(graph.variant, node);
+      if (only) {
+        only_found = true;
+        const std::string label = Label(graph.variant, node.name);
+        std::string missing;
+        for (const auto& in : node.inputs)
+          if (unavailable.count(in.node) && missing.find("'" + in.node + "'") == std::string::npos)
+            missing += (missing.empty() ? "'" : ", '") + in.node + "'";
+        if (!options_.expect_key.empty() &&
+            keys[node.name].compare(0, options_.expect_key.size(), options_.expect_key) != 0) {
+          result.failed = true;
+          result.failure = "node '" + label + "': its cache key is now " +
+                           keys[node.name].substr(0, 16) + ", not the submitted " +
+                           options_.expect_key +
+                           " (parameters, input files or plugins changed since the submission); "
+                           "submit again";
+        } else if (!missing.empty()) {
+          result.failed = true;
+          result.failure = "node '" + label + "': input node " + missing +
+                           " is not complete in " + workspace_.root().string() +
+                           " (its job must finish first)";
+        }
+        if (result.failed) {
+          report.status = "failed";
+          result.nodes.push_back(report);
+          continue;
+        }
+      }
       bool blocked = result.failed || IsCancelled(options_.cancel);
       for (const auto& in : node.inputs) blocked |= unavailable.count(in.node) > 0;
-      NodeReport report = NewReport(graph.variant, node);
       if (blocked) {
         report.status = "skipped";
       } else {
@@ -62,8 +106,12 @@ ExecResult Executor::Run(const std::vector<ResolvedGraph>& variants) {
       result.nodes.push_back(report);
     }
     for (const auto& sink : graph.sinks)
-      if (!unavailable.count(sink))
+      if (!unavailable.count(sink) && !only)
         result.outputs.push_back(workspace_.LinkPath(graph.variant, sink).string());
+  }
+  if (only && !only_found && !result.failed) {
+    result.failed = true;
+    result.failure = "no node '" + options_.only_node + "' in the graph";
   }
   if (IsCancelled(options_.cancel) && !result.failed) {
     // Interrupted between nodes (or a stage that does not poll the flag).
@@ -89,6 +137,7 @@ NodeReport Executor::RunNode(const ResolvedGraph& graph, const ResolvedNode& nod
   if (!options_.force && Workspace::IsComplete(dir)) {
     done = {"cached", dir};
     report.items = ManifestItems(dir);
+    report.output_bytes = OutputBytes(dir);
     reporter_.FileOnly(label + ": cached in " + dir.string());
   } else {
     done = Compute(label, graph, node, key, dir, &report, result);
@@ -153,6 +202,8 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
 
   reporter_.NodeStarted(label, node.stage->id);
   const auto start = std::chrono::steady_clock::now();
+  const std::string started = UtcNow();
+  const UsageMeter meter;
   const bool sharded = per_item && options_.shard_count > 1;
   // Shards running side by side may both see every item done and both
   // finalize; the first to publish wins and the other one's result (or its
@@ -162,13 +213,19 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     FileLock publish(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
     return Workspace::IsComplete(dir);
   };
+  auto measure = [&] {
+    report->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const Usage used = meter.Stop();
+    report->cpu_seconds = used.cpu_seconds;
+    report->peak_rss_bytes = used.peak_rss_bytes;
+  };
   std::string status;
   try {
     runtime::StageInstance instance(*node.stage, node.params);
     const runtime::RunResult r = instance.Run(run);
     report->items = r.items_total;
-    report->seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    measure();
     std::optional<FileLock> publish;
     if (sharded) {
       publish.emplace(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
@@ -177,6 +234,21 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
                                report->seconds);
         return {"ran", dir};
       }
+      // This shard's items are done (and, for the last one, finalized): its
+      // record tells a re-submission to skip it and the manifest its cost.
+      ShardRecord record;
+      record.index = options_.shard_index;
+      record.count = options_.shard_count;
+      record.items = r.items_total;
+      record.seconds = report->seconds;
+      record.cpu_seconds = report->cpu_seconds;
+      record.peak_rss_bytes = report->peak_rss_bytes;
+      char host[256] = {};
+      ::gethostname(host, sizeof(host) - 1);
+      record.host = host;
+      record.started = started;
+      record.finished = UtcNow();
+      WriteShardRecord(partial, record);
     }
     if (!r.complete) {
       result->waiting_for_shards = true;
@@ -186,13 +258,37 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
                              r.items_total, report->seconds);
       return {"partial", {}};
     }
-    Publish(partial, dir, Manifest(node, key, inputs, r.items_total, report->seconds));
+    host::Manifest m;
+    m.items = r.items_total;
+    m.seconds = report->seconds;
+    m.cpu_seconds = report->cpu_seconds;
+    m.peak_rss_bytes = report->peak_rss_bytes;
+    m.started = started;
+    if (sharded) {
+      // The shards' records (one that finished at the same moment as this
+      // one may not have written its record yet: then it is not counted).
+      const auto records = ReadShardRecords(partial, options_.shard_count);
+      if (!records.empty()) {
+        m = {};
+        m.shards = static_cast<int>(records.size());
+        m.started = started;
+        for (const auto& rec : records) {
+          m.items += rec.items;
+          m.seconds += rec.seconds;
+          m.cpu_seconds += rec.cpu_seconds;
+          m.peak_rss_bytes = std::max(m.peak_rss_bytes, rec.peak_rss_bytes);
+          m.started = std::min(m.started, rec.started);
+        }
+      }
+    }
+    m.output_bytes = OutputBytes(partial);
+    report->output_bytes = m.output_bytes;
+    Publish(partial, dir, Manifest(node, key, inputs, m));
     status = r.items_resumed > 0 ? "resumed" : "ran";
     reporter_.NodeFinished(label, status, r.items_total, report->seconds);
     return {status, dir};
   } catch (const std::exception& e) {
-    report->seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    measure();
     if (published_by_another_shard()) {
       reporter_.NodeFinished(label, "ran (published by another shard)", report->items,
                              report->seconds);
@@ -212,10 +308,9 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
 }
 
 std::string Executor::Manifest(const ResolvedNode& node, const std::string& key,
-                               const std::vector<runtime::InputArtifact>& inputs, uint64_t items,
-                               double seconds) const {
+                               const std::vector<runtime::InputArtifact>& inputs,
+                               host::Manifest m) const {
   const LfPluginInfo* plugin = node.stage->plugin->info;
-  host::Manifest m;
   m.stage = node.stage->id;
   m.plugin = plugin->name ? plugin->name : "";
   m.plugin_version = plugin->version ? plugin->version : "";
@@ -225,35 +320,57 @@ std::string Executor::Manifest(const ResolvedNode& node, const std::string& key,
   m.params = node.params;
   for (const auto& in : inputs) m.inputs.push_back({in.port, in.artifact_type, in.path.string()});
   m.finished = UtcNow();
-  m.items = items;
-  m.seconds = seconds;
   return FormatManifest(m);
 }
 
-std::string FormatTable(const ExecResult& result, bool with_variants) {
-  std::vector<std::vector<std::string>> rows;
-  rows.push_back({"node", "stage", "status", "items", "seconds"});
-  if (with_variants) rows.back().insert(rows.back().begin(), "variant");
-  for (const auto& n : result.nodes) {
-    char secs[32];
-    std::snprintf(secs, sizeof(secs), "%.2f", n.seconds);
-    rows.push_back({n.node, n.stage, n.status, n.items ? std::to_string(n.items) : "-", secs});
-    if (with_variants) rows.back().insert(rows.back().begin(), n.variant);
+std::string FormatBytes(uint64_t bytes) {
+  if (bytes == 0) return "-";
+  const char* units[] = {"B", "kB", "MB", "GB", "TB"};
+  double v = static_cast<double>(bytes);
+  int u = 0;
+  while (v >= 1000 && u < 4) {
+    v /= 1000;
+    ++u;
   }
-  std::vector<size_t> width(rows.front().size(), 0);
-  for (const auto& row : rows)
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), u == 0 || v >= 100 ? "%.0f %s" : "%.1f %s", v, units[u]);
+  return buf;
+}
+
+std::string FormatColumns(const std::vector<std::vector<std::string>>& rows, size_t numeric) {
+  std::vector<size_t> width;
+  for (const auto& row : rows) {
+    width.resize(std::max(width.size(), row.size()), 0);
     for (size_t c = 0; c < row.size(); ++c) width[c] = std::max(width[c], row[c].size());
+  }
   std::string out;
   for (const auto& row : rows) {
     std::string line;
     for (size_t c = 0; c < row.size(); ++c) {
-      const bool numeric = c + 2 >= row.size();
+      const bool right = c + numeric >= row.size();
       const std::string pad(width[c] - row[c].size(), ' ');
-      line += (c ? "  " : "") + (numeric ? pad + row[c] : row[c] + (c + 1 < row.size() ? pad : ""));
+      line += (c ? "  " : "") + (right ? pad + row[c] : row[c] + (c + 1 < row.size() ? pad : ""));
     }
     out += line + "\n";
   }
   return out;
+}
+
+std::string FormatTable(const ExecResult& result, bool with_variants) {
+  std::vector<std::vector<std::string>> rows;
+  rows.push_back({"node", "stage", "status", "items", "seconds", "cpu_s", "peak_mem", "output"});
+  if (with_variants) rows.back().insert(rows.back().begin(), "variant");
+  for (const auto& n : result.nodes) {
+    char secs[32], cpu[32];
+    std::snprintf(secs, sizeof(secs), "%.2f", n.seconds);
+    std::snprintf(cpu, sizeof(cpu), "%.2f", n.cpu_seconds);
+    const bool ran = n.peak_rss_bytes > 0;
+    rows.push_back({n.node, n.stage, n.status, n.items ? std::to_string(n.items) : "-", secs,
+                    ran ? cpu : "-", ran ? FormatBytes(n.peak_rss_bytes) : "-",
+                    FormatBytes(n.output_bytes)});
+    if (with_variants) rows.back().insert(rows.back().begin(), n.variant);
+  }
+  return FormatColumns(rows, 5);
 }
 
 }  // namespace locforge::host

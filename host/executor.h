@@ -20,6 +20,12 @@ struct ExecOptions {
   int shard_index = 0;
   int shard_count = 1;
   const std::atomic<bool>* cancel = nullptr;
+  // Run this node only (a scheduler's job): the other nodes are its inputs,
+  // used when complete; a missing input fails the run.
+  std::string only_node;
+  // With only_node: the first 16 hex of the key the submitter computed; a
+  // different key (inputs or parameters changed since) fails the run.
+  std::string expect_key;
 };
 
 struct NodeReport {
@@ -29,6 +35,9 @@ struct NodeReport {
   std::string status;  // ran, cached, resumed, partial (shard done), failed, skipped
   uint64_t items = 0;
   double seconds = 0;
+  double cpu_seconds = 0;       // this run's (host/usage.h)
+  uint64_t peak_rss_bytes = 0;
+  uint64_t output_bytes = 0;    // when complete
   std::string folder;  // the node's artifact folder when complete
 };
 
@@ -58,8 +67,7 @@ class Executor {
                const std::string& key, const fs::path& dir, NodeReport* report, ExecResult* result);
   std::vector<runtime::InputArtifact> Inputs(const ResolvedGraph& graph, const ResolvedNode& node);
   std::string Manifest(const ResolvedNode& node, const std::string& key,
-                       const std::vector<runtime::InputArtifact>& inputs, uint64_t items,
-                       double seconds) const;
+                       const std::vector<runtime::InputArtifact>& inputs, host::Manifest m) const;
 
   Workspace& workspace_;
   Reporter& reporter_;
@@ -70,6 +78,10 @@ class Executor {
 
 // The timing table printed at the end of a run.
 std::string FormatTable(const ExecResult& result, bool with_variants);
+// Rows (first = header) as aligned columns; the last `numeric` columns right-aligned.
+std::string FormatColumns(const std::vector<std::vector<std::string>>& rows, size_t numeric);
+// "1.2 GB", "340 MB", "12 kB", "-" for 0.
+std::string FormatBytes(uint64_t bytes);
 
 }  // namespace locforge::host
 

@@ -151,6 +151,7 @@ class GraphParser {
   bool ReadRaw(const YAML::Node& node, const std::string& what, RawValue* out);
   void ReadVars(const YAML::Node& node);
   void ReadMatrix(const YAML::Node& node);
+  void ReadSlurm(const YAML::Node& node, std::vector<SchedulerSetting>* out);
   void ApplyVarOverrides(const std::vector<Override>& sets);
   std::vector<GraphVariant> ExpandMatrix();
   void ReadNodes(const YAML::Node& nodes, GraphVariant* variant);
@@ -232,6 +233,26 @@ void GraphParser::ReadMatrix(const YAML::Node& node) {
     }
     matrix_.emplace_back(name, raw.value.items);
     matrix_where_[name] = At(it->first);
+  }
+}
+
+void GraphParser::ReadSlurm(const YAML::Node& node, std::vector<SchedulerSetting>* out) {
+  const std::string shape =
+      "'slurm' must be a mapping of SELECTOR: {SBATCH_OPTION: value} (SELECTOR: default, a "
+      "stage kind, a stage id or a node)";
+  if (!node.IsMap()) return Fail(At(node), shape);
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    if (!it->first.IsScalar() || !it->second.IsMap()) {
+      Fail(At(it->first), shape);
+      continue;
+    }
+    for (auto kv = it->second.begin(); kv != it->second.end(); ++kv) {
+      if (!kv->first.IsScalar() || !kv->second.IsScalar()) {
+        Fail(At(kv->first), "slurm." + it->first.Scalar() + ": expected option: scalar value");
+        continue;
+      }
+      out->push_back({it->first.Scalar(), kv->first.Scalar(), kv->second.Scalar(), At(kv->first)});
+    }
   }
 }
 
@@ -532,8 +553,8 @@ bool GraphParser::Parse(const std::string& text, const std::vector<Override>& se
     return false;
   }
   CheckDuplicateKeys(root);
-  static const std::vector<std::string> kTopKeys = {"locforge", "description", "plugin_paths",
-                                                    "vars",     "matrix",      "nodes"};
+  static const std::vector<std::string> kTopKeys = {
+      "locforge", "description", "plugin_paths", "vars", "matrix", "nodes", "slurm"};
   for (auto it = root.begin(); it != root.end(); ++it) {
     const std::string key = it->first.Scalar();
     if (std::find(kTopKeys.begin(), kTopKeys.end(), key) == kTopKeys.end())
@@ -550,6 +571,7 @@ bool GraphParser::Parse(const std::string& text, const std::vector<Override>& se
   if (const YAML::Node d = root["description"]; d && d.IsScalar()) graph->description = d.Scalar();
   if (const YAML::Node vars = root["vars"]) ReadVars(vars);
   if (const YAML::Node matrix = root["matrix"]) ReadMatrix(matrix);
+  if (const YAML::Node slurm = root["slurm"]) ReadSlurm(slurm, &graph->slurm);
   ApplyVarOverrides(sets);
   if (const YAML::Node paths = root["plugin_paths"]) {
     RawValue raw;

@@ -96,9 +96,21 @@ struct GraphVariant {
   std::vector<NodeSpec> nodes;  // in file order
 };
 
+// One scheduler request of the graph's `slurm:` section (or of a
+// `--slurm-opt` option): sbatch option `key` (its long name, e.g.
+// cpus-per-task, mem, time, partition) set to `value` for the jobs of the
+// nodes `selector` names: `default`, a stage kind, a stage id or a node.
+struct SchedulerSetting {
+  std::string selector;
+  std::string key;
+  std::string value;
+  SourceLocation where;
+};
+
 struct Graph {
   fs::path file;  // absolute
   std::string description;
+  std::vector<SchedulerSetting> slurm;  // as written; checked by host/slurm.h
   std::vector<std::pair<fs::path, SourceLocation>> plugin_paths;  // absolute folders
   std::vector<GraphVariant> variants;  // at least one when parsing succeeded
 };

@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <type_traits>
 #include <ctime>
 #include <vector>
 
@@ -191,10 +192,15 @@ std::string FormatManifest(const Manifest& m) {
          ", \"type\": " + JsonString(in.type) + ", \"path\": " + JsonString(in.path) + "}";
     first = false;
   }
-  char secs[32];
+  char secs[32], cpu[32];
   std::snprintf(secs, sizeof(secs), "%.3f", m.seconds);
-  j += "\n  ],\n  \"finished\": " + JsonString(m.finished) + ",\n  \"items\": " +
-       std::to_string(m.items) + ",\n  \"seconds\": " + secs + "\n}\n";
+  std::snprintf(cpu, sizeof(cpu), "%.3f", m.cpu_seconds);
+  j += "\n  ],\n  \"started\": " + JsonString(m.started) + ",\n  \"finished\": " +
+       JsonString(m.finished) + ",\n  \"items\": " + std::to_string(m.items) +
+       ",\n  \"seconds\": " + secs + ",\n  \"cpu_seconds\": " + cpu +
+       ",\n  \"peak_rss_bytes\": " + std::to_string(m.peak_rss_bytes) +
+       ",\n  \"output_bytes\": " + std::to_string(m.output_bytes) +
+       ",\n  \"shards\": " + std::to_string(m.shards) + "\n}\n";
   return j;
 }
 
@@ -222,12 +228,22 @@ Manifest ReadManifest(const fs::path& node_dir) {
   m.plugin_file = text("plugin_file");
   m.key = text("key");
   m.finished = text("finished");
-  try {
-    if (const YAML::Node n = root["items"]) m.items = n.as<uint64_t>();
-    if (const YAML::Node n = root["seconds"]) m.seconds = n.as<double>();
-  } catch (const YAML::Exception& e) {
-    throw InputError(file.string(), e.mark.line + 1, "items/seconds", "expected a number: " + e.msg);
-  }
+  m.started = text("started");
+  auto number = [&](const char* field, auto* out) {
+    const YAML::Node n = root[field];
+    if (!n) return;
+    try {
+      *out = n.as<std::remove_reference_t<decltype(*out)>>();
+    } catch (const YAML::Exception& e) {
+      throw InputError(file.string(), n.Mark().line + 1, field, "expected a number: " + e.msg);
+    }
+  };
+  number("items", &m.items);
+  number("seconds", &m.seconds);
+  number("cpu_seconds", &m.cpu_seconds);
+  number("peak_rss_bytes", &m.peak_rss_bytes);
+  number("output_bytes", &m.output_bytes);
+  number("shards", &m.shards);
   if (const YAML::Node params = root["params"]; params && params.IsMap())
     for (auto it = params.begin(); it != params.end(); ++it)
       m.params[it->first.Scalar()] = it->second.IsScalar() ? it->second.Scalar() : "";
@@ -236,6 +252,67 @@ Manifest ReadManifest(const fs::path& node_dir) {
       m.inputs.push_back({in["port"] ? in["port"].Scalar() : "", in["type"] ? in["type"].Scalar() : "",
                           in["path"] ? in["path"].Scalar() : ""});
   return m;
+}
+
+bool IsProtocolFile(const std::string& name) {
+  return name == kCompleteMarker || name.rfind(kJournalPrefix, 0) == 0 ||
+         name.rfind(kShardRecordPrefix, 0) == 0;
+}
+
+uint64_t OutputBytes(const fs::path& dir) {
+  uint64_t total = 0;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    if (it.depth() == 0 && IsProtocolFile(it->path().filename().string())) continue;
+    std::error_code fec;
+    if (it->is_regular_file(fec) && !it->is_symlink(fec)) total += it->file_size(fec);
+  }
+  return total;
+}
+
+fs::path ShardRecordPath(const fs::path& dir, int index, int count) {
+  return dir / (std::string(kShardRecordPrefix) + std::to_string(index) + "-of-" +
+                std::to_string(count));
+}
+
+void WriteShardRecord(const fs::path& dir, const ShardRecord& r) {
+  char secs[32], cpu[32];
+  std::snprintf(secs, sizeof(secs), "%.3f", r.seconds);
+  std::snprintf(cpu, sizeof(cpu), "%.3f", r.cpu_seconds);
+  WriteFileAtomic(ShardRecordPath(dir, r.index, r.count),
+                  "{\"index\": " + std::to_string(r.index) + ", \"count\": " +
+                      std::to_string(r.count) + ", \"items\": " + std::to_string(r.items) +
+                      ", \"seconds\": " + secs + ", \"cpu_seconds\": " + cpu +
+                      ", \"peak_rss_bytes\": " + std::to_string(r.peak_rss_bytes) +
+                      ", \"host\": " + JsonString(r.host) + ", \"started\": " +
+                      JsonString(r.started) + ", \"finished\": " + JsonString(r.finished) +
+                      "}\n");
+}
+
+std::vector<ShardRecord> ReadShardRecords(const fs::path& dir, int count) {
+  std::vector<ShardRecord> out;
+  for (int i = 0; i < count; ++i) {
+    const fs::path file = ShardRecordPath(dir, i, count);
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec)) continue;
+    try {
+      const YAML::Node n = YAML::LoadFile(file.string());
+      ShardRecord r;
+      r.index = i;
+      r.count = count;
+      r.items = n["items"].as<uint64_t>();
+      r.seconds = n["seconds"].as<double>();
+      r.cpu_seconds = n["cpu_seconds"].as<double>();
+      r.peak_rss_bytes = n["peak_rss_bytes"].as<uint64_t>();
+      r.host = n["host"].as<std::string>();
+      r.started = n["started"].as<std::string>();
+      r.finished = n["finished"].as<std::string>();
+      out.push_back(r);
+    } catch (const std::exception&) {
+      // A torn or foreign file: the shard counts as not done.
+    }
+  }
+  return out;
 }
 
 void Publish(const fs::path& partial_dir, const fs::path& node_dir, const std::string& manifest) {

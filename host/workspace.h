@@ -10,6 +10,11 @@
 //   locks/<node>-<key16>.shard-I-of-N.lock, .publish.lock
 //   nodes/<node> -> ../cache/...       the node's current folder
 //   logs/run-<UTC time>.log
+//   slurm/                             submissions of `run --executor slurm`
+//                                      (host/slurm.h), logs/slurm/ their job logs
+// A shard of a per-item node that finished its items leaves a record
+// (`.shard-done.I-of-N`, kShardRecordPrefix) in the partial folder: its cost,
+// summed into the manifest, and what a re-submission skips.
 // A finished node is published by writing its manifest into the partial
 // folder, then renaming that folder to the node's.
 #ifndef LOCFORGE_HOST_WORKSPACE_H_
@@ -28,6 +33,15 @@ namespace locforge::host {
 namespace fs = std::filesystem;
 
 inline constexpr const char* kCompleteMarker = ".locforge-complete";
+inline constexpr const char* kShardRecordPrefix = ".shard-done.";
+inline constexpr const char* kJournalPrefix = ".items-done.";  // the runtime's (registry.h)
+
+// A node folder's bookkeeping files (manifest, journals, shard records), not
+// the stage's outputs.
+bool IsProtocolFile(const std::string& file_name);
+// Bytes of the stage's outputs in `dir`: regular files at any depth, links
+// not followed, protocol files left out.
+uint64_t OutputBytes(const fs::path& dir);
 
 // Content stamp of a file or folder: absolute path, and size + mtime of the
 // file or of the folder's entries up to depth 2 (at most 10000 of them).
@@ -86,12 +100,33 @@ struct Manifest {
   std::vector<Input> inputs;
   std::string finished;         // UTC time
   uint64_t items = 0;           // per-item stages: items processed
-  double seconds = 0;
+  double seconds = 0;           // wall-clock: the run's, or the sum of its shards'
+  // Cost, summed over shards (peak: the largest shard's). Manifests of older
+  // runs lack them: 0.
+  double cpu_seconds = 0;
+  uint64_t peak_rss_bytes = 0;
+  uint64_t output_bytes = 0;
+  int shards = 1;               // processes that computed the items
+  std::string started;          // UTC time the (first shard's) run started
 };
 std::string FormatManifest(const Manifest& manifest);  // JSON
 // Reads the manifest of a complete node folder; throws InputError naming the
 // file and field when it is not the JSON FormatManifest writes.
 Manifest ReadManifest(const fs::path& node_dir);
+
+// What one shard of a sharded per-item run did, written into the partial
+// folder once its items are done (`.shard-done.<index>-of-<count>`, JSON).
+struct ShardRecord {
+  int index = 0, count = 1;
+  uint64_t items = 0;
+  double seconds = 0, cpu_seconds = 0;
+  uint64_t peak_rss_bytes = 0;
+  std::string host, started, finished;
+};
+fs::path ShardRecordPath(const fs::path& dir, int index, int count);
+void WriteShardRecord(const fs::path& dir, const ShardRecord& record);  // atomic
+// The records of `dir` for shard count `count` (unreadable ones skipped).
+std::vector<ShardRecord> ReadShardRecords(const fs::path& dir, int count);
 
 // Writes `manifest` as the completion marker into `partial_dir`, then
 // renames it to `node_dir` (an existing `node_dir`, e.g. under --force, is

@@ -189,6 +189,11 @@ TEST(WorkspaceTest, ManifestRoundTripsThroughAJsonReader) {
   m.finished = "2026-12-01T23:00:00Z";
   m.items = 42;
   m.seconds = 1.5;
+  m.cpu_seconds = 2.25;
+  m.peak_rss_bytes = 123456789;
+  m.output_bytes = 987654321012;
+  m.shards = 3;
+  m.started = "2026-12-01T22:59:00Z";
   fs::create_directories(root / "node");
   WriteFileAtomic(root / "node" / kCompleteMarker, FormatManifest(m));
   const Manifest back = ReadManifest(root / "node");
@@ -200,6 +205,20 @@ TEST(WorkspaceTest, ManifestRoundTripsThroughAJsonReader) {
   EXPECT_EQ(back.inputs[0].path, "/w/cache/images-0123");
   EXPECT_EQ(back.items, 42u);
   EXPECT_DOUBLE_EQ(back.seconds, 1.5);
+  EXPECT_DOUBLE_EQ(back.cpu_seconds, 2.25);
+  EXPECT_EQ(back.peak_rss_bytes, 123456789u);
+  EXPECT_EQ(back.output_bytes, 987654321012u);
+  EXPECT_EQ(back.shards, 3);
+  EXPECT_EQ(back.started, m.started);
+  // A wrong type names the field.
+  WriteFileAtomic(root / "node" / kCompleteMarker, "{\"stage\": \"a/b\",\n \"cpu_seconds\": \"x\"}\n");
+  try {
+    ReadManifest(root / "node");
+    FAIL() << "a text cpu_seconds accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cpu_seconds"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(":2"), std::string::npos) << e.what();
+  }
   // Not JSON: an error naming the file, not a crash or a silent 0.
   WriteFileAtomic(root / "node" / kCompleteMarker, "{\"items\": [1,\n");
   try {
@@ -209,6 +228,49 @@ TEST(WorkspaceTest, ManifestRoundTripsThroughAJsonReader) {
     EXPECT_NE(std::string(e.what()).find(kCompleteMarker), std::string::npos) << e.what();
   }
   fs::remove_all(root);
+}
+
+TEST(ShardRecords, WrittenReadAndMatchedToTheShardCount) {
+  const fs::path dir = locforge::testing::MakeTempDir("lf-shard-records");
+  ShardRecord r;
+  r.index = 2;
+  r.count = 3;
+  r.items = 17;
+  r.seconds = 4.5;
+  r.cpu_seconds = 8.25;
+  r.peak_rss_bytes = 3u << 30;
+  r.host = "node\"7";
+  r.started = "2026-12-01T22:00:00Z";
+  r.finished = "2026-12-01T22:00:05Z";
+  WriteShardRecord(dir, r);
+  EXPECT_TRUE(fs::exists(dir / ".shard-done.2-of-3"));
+  auto back = ReadShardRecords(dir, 3);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].index, 2);
+  EXPECT_EQ(back[0].items, 17u);
+  EXPECT_DOUBLE_EQ(back[0].cpu_seconds, 8.25);
+  EXPECT_EQ(back[0].peak_rss_bytes, 3ull << 30);
+  EXPECT_EQ(back[0].host, "node\"7");
+  EXPECT_TRUE(ReadShardRecords(dir, 4).empty());  // another shard count: not these shards
+  // A torn record counts as not done (the shard is submitted again).
+  WriteFileAtomic(dir / ".shard-done.0-of-3", "{\"index\": 0, \"items\": ");
+  EXPECT_EQ(ReadShardRecords(dir, 3).size(), 1u);
+  fs::remove_all(dir);
+}
+
+TEST(OutputBytes, CountsOutputsNotBookkeepingNorLinks) {
+  const fs::path dir = locforge::testing::MakeTempDir("lf-output-bytes");
+  WriteFileAtomic(dir / "a.txt", std::string(1000, 'a'));
+  fs::create_directories(dir / "sub/deeper");
+  WriteFileAtomic(dir / "sub/deeper/b.bin", std::string(234, 'b'));
+  WriteFileAtomic(dir / kCompleteMarker, std::string(50, 'm'));
+  WriteFileAtomic(dir / ".items-done.0-of-1", "x\n");
+  WriteFileAtomic(dir / ".shard-done.0-of-2", "{}");
+  fs::create_symlink(dir / "a.txt", dir / "link.txt");  // the owner's file, not this node's
+  EXPECT_EQ(OutputBytes(dir), 1234u);
+  EXPECT_TRUE(IsProtocolFile(".items-done.3-of-4"));
+  EXPECT_FALSE(IsProtocolFile("items-done.txt"));
+  fs::remove_all(dir);
 }
 
 }  // namespace
