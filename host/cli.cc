@@ -23,6 +23,7 @@ Commands:
   kapture ...                   Kapture dataset tools
   colmap ...                    COLMAP model tools
   collect W NODE/FILE           One table of a node's result over a matrix run's variants
+  report W [-o FILE]            One HTML report of a workspace's last run
   help [COMMAND]                This help, or a command's
 
 Options:
@@ -201,12 +202,13 @@ int Main(const Args& args) {
       return 0;
     }
     if (rest.front() == "collect") return CollectCommand({"--help"});
+    if (rest.front() == "report") return ReportCommand({"--help"});
     if (rest.front() == "kapture" || rest.front() == "colmap")
       return rest.front() == "kapture" ? KaptureCommand({"--help"}) : ColmapCommand({"--help"});
     const std::string text = HelpText(rest.front());
     if (text.empty()) {
       const std::string hint =
-          DidYouMean(rest.front(), {"plugins", "validate", "run", "kapture", "colmap", "collect"});
+          DidYouMean(rest.front(), {"plugins", "validate", "run", "kapture", "colmap", "collect", "report"});
       return UsageError("help", "no such command '" + rest.front() + "'" +
                                     (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
     }
@@ -218,9 +220,10 @@ int Main(const Args& args) {
   if (command == "run") return RunCommand(rest);
   if (command == "kapture") return KaptureCommand(rest);
   if (command == "collect") return CollectCommand(rest);
+  if (command == "report") return ReportCommand(rest);
   if (command == "colmap") return ColmapCommand(rest);
-  const std::vector<std::string> commands = {"plugins", "validate", "run",  "kapture",
-                                             "colmap",  "collect",  "help"};
+  const std::vector<std::string> commands = {"plugins", "validate", "run",    "kapture",
+                                             "colmap",  "collect",  "report", "help"};
   const std::string hint = DidYouMean(command, commands);
   std::cerr << "locforge: unknown command '" << command << "'"
             << (hint.empty() ? "" : " (did you mean '" + hint + "'?)")

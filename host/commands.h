@@ -17,6 +17,7 @@ int RunCommand(const Args& args);       // run GRAPH.yaml --workspace DIR ...
 int KaptureCommand(const Args& args);   // kapture info DIR | copy SRC DST   (cmd_kapture.cc)
 int ColmapCommand(const Args& args);    // colmap import|export ...         (cmd_colmap.cc)
 int CollectCommand(const Args& args);   // collect WORKSPACE NODE/FILE       (cmd_collect.cc)
+int ReportCommand(const Args& args);    // report WORKSPACE [-o FILE]        (cmd_report.cc)
 
 }  // namespace locforge::host
 

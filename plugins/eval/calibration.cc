@@ -19,7 +19,9 @@ struct CalibrationEvalOptions {
   std::string title = "Camera poses and calibration against the reference";
   static void Declare(ParamSchema<CalibrationEvalOptions>& s) {
     using O = CalibrationEvalOptions;
-    s.Add("reference", &O::reference, "kapture with the true sensors.txt, rigs.txt and camera poses (the simulator's output)").Path().Required();
+    s.Add("reference", &O::reference,
+          "kapture with the true sensors.txt, rigs.txt and camera poses (the simulator's output), or wire the "
+          "reference input").Path();
     s.Add("labels", &O::labels, "row label of each estimate (default: node names)");
     s.Add("groups", &O::groups, "camera groups NAME=REGEX on sensor ids");
     s.Add("alignment", &O::alignment, "alignment of the estimated poses: none or one SE(3) per estimate").Choices({"none", "se3"});
@@ -33,7 +35,9 @@ class CalibrationEvalStage : public Stage<CalibrationEvalOptions> {
     StageMeta meta = {"eval", "calibration",
             "Camera pose RMS errors, focal errors and camera rotation errors of one or more "
             "estimates against a reference, per camera group (one table row per estimate)",
-            {{"estimates", "kapture.trajectories", "refined sensors, rigs, trajectories", LF_PORT_MULTIPLE}},
+            {{"estimates", "kapture.trajectories", "refined sensors, rigs, trajectories", LF_PORT_MULTIPLE},
+             {"reference", "kapture.dataset", "the reference kapture, instead of the reference parameter",
+              LF_PORT_OPTIONAL}},
             {{"report", "report", "calibration.md, calibration.csv, per_camera.csv"}}};
     meta.version = "1.0.0";
     return meta;
@@ -120,7 +124,7 @@ Sim3Alignment AlignSim3(const std::vector<Pose>& est, const std::vector<Pose>& r
 void CalibrationEvalStage::Run(RunContext& ctx) {
   const auto& o = options();
   const CameraGroups groups = CameraGroups::Parse(o.groups);
-  const fs::path ref_root = o.reference;
+  const fs::path ref_root = ctx.PathOrInput("eval/calibration", "reference", o.reference, "reference");
   const kp::Sensors ref_sensors = kp::ReadSensors(ref_root / kp::layout::kSensors);
   const kp::Rigs ref_rigs = kp::ReadRigs(ref_root / kp::layout::kRigs);
   const kp::Trajectories ref_traj = kp::ReadTrajectories(ref_root / kp::layout::kTrajectories);

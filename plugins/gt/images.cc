@@ -14,7 +14,8 @@ namespace {
 struct ImagesOptions {
   std::string dataset;  // The recording (records_camera.txt + images).
   static void Declare(ParamSchema<ImagesOptions>& s) {
-    s.Add("dataset", &ImagesOptions::dataset, "kapture recording with records_camera.txt and the images").Path().Required();
+    s.Add("dataset", &ImagesOptions::dataset,
+          "kapture recording with records_camera.txt and the images (or wire the recording input)").Path();
   }
 };
 
@@ -24,7 +25,8 @@ class ImagesStage : public Stage<ImagesOptions> {
     StageMeta meta = {"gt", "images",
             "The images of a recording (records_camera.txt, images hard-linked) with the sensors, "
             "rigs and poses of another node (e.g. the LiDAR half), as one kapture dataset",
-            {{"poses", "kapture.trajectories", "sensors.txt, rigs.txt, trajectories.txt"}},
+            {{"poses", "kapture.trajectories", "sensors.txt, rigs.txt, trajectories.txt"},
+             {"recording", "kapture.dataset", "the recording, instead of the dataset parameter", LF_PORT_OPTIONAL}},
             {{"dataset", "kapture.dataset", "cameras, poses, records_camera.txt, records_data/"}}};
     meta.version = "1.0.0";
     return meta;
@@ -38,7 +40,8 @@ class ImagesStage : public Stage<ImagesOptions> {
 void ImagesStage::Run(RunContext& ctx) {
   const auto& o = options();
   const fs::path in = ctx.Input("poses");
-  kp::Kapture recording(o.dataset);
+  const fs::path dataset = ctx.PathOrInput("gt/images", "dataset", o.dataset, "recording");
+  kp::Kapture recording(dataset);
   const kp::Sensors sensors = kp::ReadSensors(in / kp::layout::kSensors);
   const kp::Trajectories poses = kp::ReadTrajectories(in / kp::layout::kTrajectories);
   std::vector<kp::DataRecord> records;
@@ -53,7 +56,7 @@ void ImagesStage::Run(RunContext& ctx) {
     records.push_back(r);
   }
   if (records.empty())
-    throw InputError((in / kp::layout::kTrajectories).string(), 0, "trajectories", "no image of " + o.dataset + " has a pose");
+    throw InputError((in / kp::layout::kTrajectories).string(), 0, "trajectories", "no image of " + dataset.string() + " has a pose");
   if (unposed) ctx.Warn(std::to_string(unposed) + " images without a pose left out");
   const fs::path out = ctx.output_dir();
   fs::create_directories(out / "sensors");

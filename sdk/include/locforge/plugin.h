@@ -81,6 +81,25 @@ class RunContext {
     return all.front();
   }
 
+  // A folder a stage takes either as a PATH parameter or as an input
+  // artifact wired in the graph: e.g. a recording, given as the `dataset`
+  // parameter or wired to the `recording` input from source/simulator. Throws
+  // ParamError naming `stage`, the parameter and the port when neither or
+  // both are given.
+  std::filesystem::path PathOrInput(const std::string& stage, const std::string& param,
+                                    const std::string& value, const std::string& port) const {
+    if (HasInput(port)) {
+      if (!value.empty())
+        throw ParamError(stage + ": given twice: as the " + param + " parameter (" + value + ") and as the " +
+                         port + " input; keep one");
+      return Input(port);
+    }
+    if (value.empty())
+      throw ParamError(stage + ": no " + param + ": set the " + param + " parameter (in the shipped graphs: --set " +
+                       param + "=DIR) or wire the " + port + " input");
+    return value;
+  }
+
   void Debug(const std::string& m) const { Log(LF_LOG_DEBUG, m); }
   void Info(const std::string& m) const { Log(LF_LOG_INFO, m); }
   void Warn(const std::string& m) const { Log(LF_LOG_WARNING, m); }
