@@ -326,7 +326,7 @@ void GraphParser::ApplyVarOverrides(const std::vector<Override>& sets) {
       continue;
     }
     if (vars_.count(set.key)) {
-      vars_[set.key] = RawValue{ParseCommandLineValue(set.value, where, errors_), where, true};
+      vars_[set.key] = RawValue{ParseCommandLineValue(set.value, where, errors_), where, true, false, ""};
       continue;
     }
     auto m = std::find_if(matrix_.begin(), matrix_.end(),
@@ -640,7 +640,7 @@ void GraphParser::ExpandInclude(const IncludeSpec& inc, GraphVariant* variant, G
     Value v = Substitute(raw.value, raw.where, &cli);
     if (errors_->size() != before) continue;
     from_cli |= cli;
-    values[name] = RawValue{v, raw.where, true};
+    values[name] = RawValue{v, raw.where, true, false, ""};
   }
   // Relative paths among them resolve where they were written: this file's
   // folder, or the current directory when a --set value went in.
@@ -648,12 +648,15 @@ void GraphParser::ExpandInclude(const IncludeSpec& inc, GraphVariant* variant, G
   inner.depth_ = depth_ + 1;
   std::vector<NodeSpec> nodes;
   inner.ParseIncluded(text, values, inc, &nodes, graph);
+  // Wires to the included graph's own nodes get the prefix; a wire to any
+  // other name came in through a variable and names a node of this graph.
   std::set<std::string> names;
+  for (const auto& n : nodes) names.insert(n.name);
   for (auto& n : nodes) {
-    names.insert(n.name);
     n.name = inc.prefix + n.name;
     for (auto& [port, spec] : n.inputs)
-      for (auto& w : spec.wires) w.node = inc.prefix + w.node;
+      for (auto& w : spec.wires)
+        if (names.count(w.node)) w.node = inc.prefix + w.node;
   }
   for (const auto& [target, raw] : inc.inputs) {
     const size_t dot = target.find('.');
