@@ -8,7 +8,6 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 #include "locforge/pointcloud_io.h"
-#include "pcap.h"
 #include "vlp16.h"
 
 namespace locforge::velodyne {
@@ -88,43 +87,15 @@ void VelodynePcap::Run(RunContext& ctx) {
       o.calibration.empty() ? Calibration::Vlp16() : Calibration::FromYaml(o.calibration);
   for (const auto& c : calibration.not_applied)
     ctx.Warn("velodyne_pcap: calibration term not applied (HDL-64 near-range or intensity model): " + c);
-  DecodeOptions decode;
-  decode.returns = ParseReturns(o.returns);
-  decode.min_range = o.min_range;
-  decode.max_range = o.max_range;
-
-  PcapReader reader(o.pcap);
-  PacketClock clock;
-  ScanAssembler assembler(o.cut_azimuth_deg, o.scan_period_s);
-  DecodeStats stats;
-  std::vector<Scan> scans;
-  std::vector<Point> points;
-  UdpPacket packet;
-  int64_t other_ports = 0;
-  while (reader.Next(&packet)) {
-    ctx.ThrowIfCancelled();
-    if (packet.destination_port != o.port) {
-      ++other_ports;
-      continue;
-    }
-    if (packet.payload.size() != kPacketSize) {
-      ++stats.bad_packets;
-      continue;
-    }
-    const auto* p = reinterpret_cast<const unsigned char*>(packet.payload.data());
-    const uint32_t micros = static_cast<uint32_t>(p[1200]) | static_cast<uint32_t>(p[1201]) << 8 |
-                            static_cast<uint32_t>(p[1202]) << 16 | static_cast<uint32_t>(p[1203]) << 24;
-    points.clear();
-    if (!DecodePacket(packet.payload, clock.TimeNs(micros, packet.capture_time), calibration, decode, &points, &stats))
-      continue;
-    assembler.Add(points, &scans);
-  }
-  assembler.Finish(&scans);
-  if (stats.packets == 0)
-    throw InputError(o.pcap, 0, "",
-                     "no VLP-16 data packet on UDP port " + std::to_string(o.port) + " (" +
-                         std::to_string(reader.stats().udp) + " UDP datagrams, " + std::to_string(stats.bad_packets) +
-                         " of 1206 bytes or malformed on that port)");
+  CaptureOptions capture;
+  capture.port = static_cast<int>(o.port);
+  capture.decode = {ParseReturns(o.returns), o.min_range, o.max_range};
+  capture.cut_azimuth_deg = o.cut_azimuth_deg;
+  capture.scan_period_s = o.scan_period_s;
+  const CaptureScans read = ScanCapture(o.pcap, calibration, capture, [&] { ctx.ThrowIfCancelled(); });
+  const std::vector<Scan>& scans = read.scans;
+  const DecodeStats& stats = read.stats;
+  const int64_t other_ports = read.other_ports;
 
   const fs::path out = ctx.output_dir();
   kp::Sensors sensors;

@@ -7,6 +7,7 @@
 #include <numeric>
 
 #include "locforge/error.h"
+#include "pcap.h"
 
 namespace locforge::velodyne {
 
@@ -251,5 +252,41 @@ void ScanAssembler::Add(const std::vector<Point>& points, std::vector<Scan>* sca
 }
 
 void ScanAssembler::Finish(std::vector<Scan>* scans) { Emit(false, scans); }
+
+CaptureScans ScanCapture(const std::filesystem::path& pcap, const Calibration& calibration,
+                         const CaptureOptions& options, const std::function<void()>& between_packets) {
+  CaptureScans out;
+  PcapReader reader(pcap);
+  PacketClock clock;
+  ScanAssembler assembler(options.cut_azimuth_deg, options.scan_period_s);
+  UdpPacket packet;
+  std::vector<Point> points;
+  while (reader.Next(&packet)) {
+    if (between_packets) between_packets();
+    if (packet.destination_port != options.port) {
+      ++out.other_ports;
+      continue;
+    }
+    if (packet.payload.size() != kPacketSize) {
+      ++out.stats.bad_packets;
+      continue;
+    }
+    const auto* p = reinterpret_cast<const unsigned char*>(packet.payload.data());
+    const uint32_t micros = static_cast<uint32_t>(p[1200]) | static_cast<uint32_t>(p[1201]) << 8 |
+                            static_cast<uint32_t>(p[1202]) << 16 | static_cast<uint32_t>(p[1203]) << 24;
+    points.clear();
+    if (DecodePacket(packet.payload, clock.TimeNs(micros, packet.capture_time), calibration, options.decode,
+                     &points, &out.stats))
+      assembler.Add(points, &out.scans);
+  }
+  assembler.Finish(&out.scans);
+  out.udp = reader.stats().udp;
+  if (out.stats.packets == 0)
+    throw InputError(pcap.string(), 0, "",
+                     "no VLP-16 data packet on UDP port " + std::to_string(options.port) + " (" +
+                         std::to_string(out.udp) + " UDP datagrams, " + std::to_string(out.stats.bad_packets) +
+                         " of 1206 bytes or malformed on that port)");
+  return out;
+}
 
 }  // namespace locforge::velodyne

@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -134,6 +135,28 @@ class ScanAssembler {
   int64_t window_start_ns_ = 0;
   Scan current_;
 };
+
+// A whole capture: its data packets on one UDP port, decoded and cut into
+// scans.
+struct CaptureOptions {
+  int port = 2368;  // UDP destination port of the data packets
+  DecodeOptions decode;
+  double cut_azimuth_deg = -1;  // ScanAssembler
+  double scan_period_s = 0;
+};
+
+struct CaptureScans {
+  std::vector<Scan> scans;
+  DecodeStats stats;
+  int64_t udp = 0;          // UDP datagrams in the capture
+  int64_t other_ports = 0;  // datagrams to other ports (position packets: 8308)
+};
+
+// Reads `pcap` (PcapReader) through the decoder and the scan assembler;
+// `between_packets` (may be empty) runs before each packet, e.g. to cancel.
+// Throws InputError when the capture holds no data packet on the port.
+CaptureScans ScanCapture(const std::filesystem::path& pcap, const Calibration& calibration,
+                         const CaptureOptions& options, const std::function<void()>& between_packets = {});
 
 }  // namespace locforge::velodyne
 

@@ -31,25 +31,11 @@ struct Decoded {
 };
 
 Decoded Decode(const fs::path& pcap, const Calibration& calibration, double cut = -1, double period = 0) {
-  Decoded d;
-  PcapReader reader(pcap);
-  PacketClock clock;
-  ScanAssembler assembler(cut, period);
-  UdpPacket packet;
-  std::vector<Point> points;
-  while (reader.Next(&packet)) {
-    if (packet.destination_port != 2368) continue;
-    const auto* p = reinterpret_cast<const unsigned char*>(packet.payload.data());
-    uint32_t micros = 0;
-    std::memcpy(&micros, p + 1200, 4);
-    points.clear();
-    if (DecodePacket(packet.payload, clock.TimeNs(micros, packet.capture_time), calibration, {}, &points, &d.stats)) {
-      ++d.packets;
-      assembler.Add(points, &d.scans);
-    }
-  }
-  assembler.Finish(&d.scans);
-  return d;
+  CaptureOptions options;
+  options.cut_azimuth_deg = cut;
+  options.scan_period_s = period;
+  CaptureScans c = ScanCapture(pcap, calibration, options);
+  return {std::move(c.scans), c.stats, c.stats.packets};
 }
 
 // The returns of the capture's data packets, counted from the raw bytes
