@@ -24,6 +24,7 @@ Commands:
   colmap ...                    COLMAP model tools
   collect W NODE/FILE           One table of a node's result over a matrix run's variants
   status W                      Per-node state and cost (a Slurm submission's jobs)
+  report W [-o FILE]            One HTML report of a workspace's last run
   help [COMMAND]                This help, or a command's
 
 Options:
@@ -222,12 +223,13 @@ int Main(const Args& args) {
     }
     if (rest.front() == "collect") return CollectCommand({"--help"});
     if (rest.front() == "status") return StatusCommand({"--help"});
+    if (rest.front() == "report") return ReportCommand({"--help"});
     if (rest.front() == "kapture" || rest.front() == "colmap")
       return rest.front() == "kapture" ? KaptureCommand({"--help"}) : ColmapCommand({"--help"});
     const std::string text = HelpText(rest.front());
     if (text.empty()) {
       const std::string hint =
-          DidYouMean(rest.front(), {"plugins", "validate", "run", "kapture", "colmap", "collect"});
+          DidYouMean(rest.front(), {"plugins", "validate", "run", "kapture", "colmap", "collect", "report"});
       return UsageError("help", "no such command '" + rest.front() + "'" +
                                     (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
     }
@@ -240,9 +242,10 @@ int Main(const Args& args) {
   if (command == "kapture") return KaptureCommand(rest);
   if (command == "collect") return CollectCommand(rest);
   if (command == "status") return StatusCommand(rest);
+  if (command == "report") return ReportCommand(rest);
   if (command == "colmap") return ColmapCommand(rest);
-  const std::vector<std::string> commands = {"plugins", "validate", "run",    "kapture",
-                                             "colmap",  "collect",  "status", "help"};
+  const std::vector<std::string> commands = {"plugins", "validate", "run",    "kapture", "colmap",
+                                             "collect", "status",   "report", "help"};
   const std::string hint = DidYouMean(command, commands);
   std::cerr << "locforge: unknown command '" << command << "'"
             << (hint.empty() ? "" : " (did you mean '" + hint + "'?)")

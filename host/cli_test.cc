@@ -277,6 +277,65 @@ TEST_F(Cli, ValidateAcceptsTheExamples) {
   }
 }
 
+// configs/ holds runnable graphs only: each validates against the built
+// plugins (required variables given), and a required variable left out says
+// how to give it before anything runs.
+TEST_F(Cli, EveryShippedGraphValidatesAndRequiredVariablesSayWhatToDo) {
+  const fs::path shared = locforge::testing::SharedDir();
+  if (!fs::exists(shared / "data")) {
+    if (locforge::testing::SharedRequired()) FAIL() << "shared data missing and LOCFORGE_REQUIRE_SHARED=1";
+    GTEST_SKIP() << "the shipped graphs read ../shared: absent, set LOCFORGE_SHARED_DIR";
+  }
+  const fs::path configs = fs::path(LOCFORGE_SOURCE_DIR) / "configs";
+  const fs::path recording = dir_ / "recording";
+  fs::create_directories(recording);
+  int graphs = 0;
+  for (const auto& e : fs::recursive_directory_iterator(configs)) {
+    if (e.path().extension() != ".yaml") continue;
+    ++graphs;
+    const std::string text = ReadAll(e.path());
+    const bool needs_dataset = text.find("dataset: !required") != std::string::npos;
+    const Result r = Run("validate '" + e.path().string() + "'" +
+                         (needs_dataset ? " --set dataset=" + recording.string() : std::string()));
+    EXPECT_EQ(r.rc, 0) << e.path() << ": " << r.err;
+    if (needs_dataset) {
+      const Result missing = Run("validate '" + e.path().string() + "'");
+      EXPECT_EQ(missing.rc, 2) << e.path();
+      EXPECT_NE(missing.err.find("error: variable 'dataset' is required (DIR: a kapture recording): give it with "
+                                 "--set dataset=DIR"),
+                std::string::npos)
+          << e.path() << ": " << missing.err;
+    }
+  }
+  EXPECT_GE(graphs, 15);
+}
+
+// The report of a run: one HTML file naming the CSV it shows, the run record
+// beside the log.
+TEST_F(Cli, ReportOfARun) {
+  Write("demo.yaml", kDemo);
+  ASSERT_EQ(Run("run demo.yaml --workspace ws").rc, 0);
+  ASSERT_EQ(Run("run demo.yaml --workspace ws").rc, 0);  // the report shows this (cached) run
+  int records = 0;
+  for (const auto& e : fs::directory_iterator(dir_ / "ws" / "logs")) records += e.path().extension() == ".json";
+  EXPECT_EQ(records, 2);
+  Result r = Run("report ws");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_EQ(r.out, "report: ws/report.html\n");
+  const std::string html = ReadAll(dir_ / "ws" / "report.html");
+  EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
+  EXPECT_NE(html.find("<td>stats</td><td>example/image_stats</td><td>"), std::string::npos);
+  EXPECT_NE(html.find("<td>cached</td>"), std::string::npos);
+  EXPECT_EQ(html.find("<td>ran</td>"), std::string::npos) << "the last run computed nothing";
+  EXPECT_EQ(html.find("http"), std::string::npos) << "nothing loaded from elsewhere";
+  r = Run("report ws -o out/r.html");
+  EXPECT_EQ(r.rc, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "r.html"));
+  r = Run("report nowhere");
+  EXPECT_EQ(r.rc, 2);
+  EXPECT_NE(r.err.find("is not a workspace"), std::string::npos) << r.err;
+}
+
 TEST_F(Cli, RunThenRerunIsCachedAndTouchesNothing) {
   Write("demo.yaml", kDemo);
   Result r = Run("run demo.yaml --workspace ws --threads 2");

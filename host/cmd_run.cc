@@ -2,6 +2,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <iostream>
 #include <stdexcept>
@@ -10,8 +11,10 @@
 #include "cli.h"
 #include "executor.h"
 #include "graph.h"
+#include "locforge/fs.h"
 #include "locforge/params.h"
 #include "slurm.h"
+#include "run_record.h"
 
 namespace locforge::host {
 
@@ -369,6 +372,8 @@ int RunCommand(const Args& args) {
   std::signal(SIGINT, OnInterrupt);
   std::signal(SIGTERM, OnInterrupt);
   Executor executor(*workspace, reporter, options);
+  const std::string started = UtcNow();
+  const auto start_time = std::chrono::steady_clock::now();
   ExecResult result;
   try {
     result = executor.Run(resolved);
@@ -388,6 +393,14 @@ int RunCommand(const Args& args) {
     for (const auto& o : result.outputs) std::cout << "  " << o << "\n";
   }
   std::cout << "log: " << log_file.string() << "\n";
+  try {  // the record `locforge report` reads; a run does not fail for it
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+    WriteFileAtomic(RunRecordPath(log_file),
+                    FormatRunRecord(MakeRunRecord(ga.graph, command_line, resolved, result, started, seconds,
+                                                  options.threads)));
+  } catch (const std::exception& e) {
+    reporter.Line("warning: cannot write the run record: " + std::string(e.what()));
+  }
   if (result.failed) {
     reporter.Line("error: " + result.failure);
     return 1;

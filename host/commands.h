@@ -18,6 +18,7 @@ int KaptureCommand(const Args& args);   // kapture info DIR | copy SRC DST   (cm
 int ColmapCommand(const Args& args);    // colmap import|export ...         (cmd_colmap.cc)
 int CollectCommand(const Args& args);   // collect WORKSPACE NODE/FILE       (cmd_collect.cc)
 int StatusCommand(const Args& args);    // status WORKSPACE [--wait]         (cmd_status.cc)
+int ReportCommand(const Args& args);    // report WORKSPACE [-o FILE]        (cmd_report.cc)
 
 }  // namespace locforge::host
 

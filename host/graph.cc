@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <functional>
 #include <set>
 #include <sstream>
@@ -129,7 +130,25 @@ struct RawValue {
   Value value;
   SourceLocation where;
   bool from_command_line = false;
+  // A variable declared `!required DOC`: it has no default, so the command
+  // line (or the including graph) must give it.
+  bool required = false;
+  std::string doc;
 };
+
+// An `include:` entry: another graph's nodes added to this one, their names
+// prefixed, some of its variables set and some of its inputs wired here.
+struct IncludeSpec {
+  std::string name;
+  SourceLocation where;
+  fs::path file;        // absolute
+  std::string display;  // as diagnostics name it
+  std::string prefix;
+  std::vector<std::pair<std::string, RawValue>> vars;
+  std::vector<std::pair<std::string, RawValue>> inputs;  // "NODE.PORT" of the included graph -> wires here
+};
+
+constexpr int kMaxIncludeDepth = 8;
 
 class GraphParser {
  public:
@@ -141,6 +160,15 @@ class GraphParser {
   bool Parse(const std::string& text, const std::vector<Override>& sets, Graph* graph);
 
  private:
+  // The graph as an include of another: `values` set its variables (already
+  // substituted in the includer), `includer` names the include entry in
+  // messages. Its nodes go into `nodes`, unprefixed.
+  void ParseIncluded(const std::string& text, const std::map<std::string, RawValue>& values,
+                     const IncludeSpec& includer, std::vector<NodeSpec>* nodes, Graph* graph);
+  void ReadIncludes(const YAML::Node& node);
+  void ExpandInclude(const IncludeSpec& include, GraphVariant* variant, Graph* graph);
+  void CheckRequiredVars(const IncludeSpec* includer);
+  InputSpec WiresOf(const Value& value, const SourceLocation& where) const;
   SourceLocation At(const YAML::Node& n) const { return At(n.Mark()); }
   SourceLocation At(const YAML::Mark& m) const { return {display_, m.line + 1, m.column + 1}; }
   void Fail(const SourceLocation& where, const std::string& message) {
@@ -177,6 +205,8 @@ class GraphParser {
   std::map<std::string, std::string> matrix_env_;
   std::map<std::string, std::pair<Value, bool>> resolved_vars_;
   std::set<std::string> resolving_;
+  std::vector<IncludeSpec> includes_;
+  int depth_ = 0;  // include nesting
 };
 
 void GraphParser::CheckDuplicateKeys(const YAML::Node& node) {
@@ -208,8 +238,37 @@ void GraphParser::ReadVars(const YAML::Node& node) {
       Fail(At(it->first), "variable name '" + name + "' must be letters, digits and '_'");
       continue;
     }
+    if (it->second.Tag() == "!required") {
+      RawValue raw;
+      raw.where = At(it->second);
+      raw.required = true;
+      raw.doc = it->second.IsScalar() ? Unmask(it->second.Scalar()) : "";
+      vars_[name] = raw;
+      continue;
+    }
     RawValue raw;
     if (ReadRaw(it->second, "variable '" + name + "'", &raw)) vars_[name] = raw;
+  }
+}
+
+// "DIR" of "DIR: a kapture recording": the value's name in the message.
+std::string Placeholder(const std::string& doc) {
+  size_t n = 0;
+  while (n < doc.size() && (std::isupper(static_cast<unsigned char>(doc[n])) || doc[n] == '_')) ++n;
+  return n > 0 && (n == doc.size() || !std::isalnum(static_cast<unsigned char>(doc[n]))) ? doc.substr(0, n)
+                                                                                         : "VALUE";
+}
+
+void GraphParser::CheckRequiredVars(const IncludeSpec* includer) {
+  for (const auto& [name, raw] : vars_) {
+    if (!raw.required) continue;
+    const std::string doc = raw.doc.empty() ? "" : " (" + raw.doc + ")";
+    if (includer)
+      Fail(includer->where, "include '" + includer->name + "': variable '" + name + "' of " +
+                                includer->display + " is required" + doc + "; set it under the include's vars");
+    else
+      Fail(raw.where, "variable '" + name + "' is required" + doc + ": give it with --set " + name + "=" +
+                          Placeholder(raw.doc));
   }
 }
 
@@ -288,7 +347,7 @@ void GraphParser::ApplyVarOverrides(const std::vector<Override>& sets) {
       continue;
     }
     if (vars_.count(set.key)) {
-      vars_[set.key] = RawValue{ParseCommandLineValue(set.value, where, errors_), where, true};
+      vars_[set.key] = RawValue{ParseCommandLineValue(set.value, where, errors_), where, true, false, ""};
       continue;
     }
     auto m = std::find_if(matrix_.begin(), matrix_.end(),
@@ -495,22 +554,213 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
           bool cli = false;
           const size_t before = errors_->size();
           const Value v = Substitute(raw.value, raw.where, &cli);
+          const SourceLocation key_where = spec.where;
+          spec = WiresOf(v, raw.where);
+          spec.where = key_where;
           spec.broken = errors_->size() != before;
-          spec.is_list = v.is_list;
-          for (const auto& text : v.items) {
-            Wire w;
-            w.where = raw.where;
-            const size_t dot = text.find('.');
-            w.node = text.substr(0, dot);
-            if (dot != std::string::npos) w.port = text.substr(dot + 1);
-            spec.wires.push_back(w);
-          }
           node.inputs[in->first.Scalar()] = spec;
         }
       }
     }
     variant->nodes.push_back(std::move(node));
   }
+}
+
+InputSpec GraphParser::WiresOf(const Value& value, const SourceLocation& where) const {
+  InputSpec spec;
+  spec.where = where;
+  spec.is_list = value.is_list;
+  for (const auto& text : value.items) {
+    Wire w;
+    w.where = where;
+    const size_t dot = text.find('.');
+    w.node = text.substr(0, dot);
+    if (dot != std::string::npos) w.port = text.substr(dot + 1);
+    spec.wires.push_back(w);
+  }
+  return spec;
+}
+
+void GraphParser::ReadIncludes(const YAML::Node& node) {
+  if (!node.IsMap())
+    return Fail(At(node), "'include' must be a mapping of name: {graph: FILE, prefix: ..., vars: {...}, inputs: {...}}");
+  static const std::vector<std::string> kKeys = {"graph", "prefix", "vars", "inputs"};
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    IncludeSpec inc;
+    inc.name = it->first.Scalar();
+    inc.where = At(it->first);
+    const YAML::Node body = it->second;
+    if (!IsIdentifier(inc.name, true)) {
+      Fail(inc.where, "include name '" + inc.name + "' must be letters, digits, '_' and '-'");
+      continue;
+    }
+    if (!body.IsMap()) {
+      Fail(At(body), "include '" + inc.name + "': expected a mapping with 'graph' (and prefix, vars, inputs)");
+      continue;
+    }
+    bool ok = true;
+    for (auto k = body.begin(); k != body.end(); ++k) {
+      const std::string key = k->first.Scalar();
+      if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end()) {
+        Fail(At(k->first), "include '" + inc.name + "': unknown key '" + key + "'" + Hint(key, kKeys) +
+                               "; expected graph, prefix, vars or inputs");
+        ok = false;
+      }
+    }
+    const YAML::Node graph = body["graph"];
+    if (!graph || !graph.IsScalar() || graph.Scalar().empty()) {
+      Fail(inc.where, "include '" + inc.name + "': 'graph: FILE' is required (relative to this file)");
+      continue;
+    }
+    inc.file = (dir_ / graph.Scalar()).lexically_normal();
+    inc.display = (fs::path(display_).parent_path() / graph.Scalar()).lexically_normal().string();
+    std::error_code ec;
+    if (!fs::is_regular_file(inc.file, ec)) {
+      Fail(At(graph), "include '" + inc.name + "': graph file '" + inc.file.string() + "' not found");
+      continue;
+    }
+    if (const YAML::Node prefix = body["prefix"]) {
+      inc.prefix = prefix.IsScalar() ? prefix.Scalar() : "";
+      if (!inc.prefix.empty() && !IsIdentifier(inc.prefix, true)) {
+        Fail(At(prefix), "include '" + inc.name + "': prefix '" + inc.prefix + "' must be letters, digits, '_' and '-'");
+        ok = false;
+      }
+    }
+    for (const char* section : {"vars", "inputs"}) {
+      const YAML::Node m = body[section];
+      if (!m || m.IsNull()) continue;
+      if (!m.IsMap()) {
+        Fail(At(m), "include '" + inc.name + "': '" + section + "' must be a mapping");
+        ok = false;
+        continue;
+      }
+      for (auto k = m.begin(); k != m.end(); ++k) {
+        RawValue raw;
+        if (!ReadRaw(k->second, "include '" + inc.name + "': " + section + " '" + k->first.Scalar() + "'", &raw)) {
+          ok = false;
+          continue;
+        }
+        raw.where = At(k->first);
+        (std::string(section) == "vars" ? inc.vars : inc.inputs).emplace_back(k->first.Scalar(), raw);
+      }
+    }
+    if (ok) includes_.push_back(std::move(inc));
+  }
+}
+
+void GraphParser::ExpandInclude(const IncludeSpec& inc, GraphVariant* variant, Graph* graph) {
+  if (depth_ >= kMaxIncludeDepth)
+    return Fail(inc.where, "include '" + inc.name + "': includes nested more than " +
+                               std::to_string(kMaxIncludeDepth) + " deep (does a graph include itself?)");
+  std::string text;
+  try {
+    text = ReadFile(inc.file);
+  } catch (const std::exception& e) {
+    return Fail(inc.where, "include '" + inc.name + "': " + e.what());
+  }
+  // Values are substituted here, in the including graph's variables.
+  std::map<std::string, RawValue> values;
+  bool from_cli = false;
+  for (const auto& [name, raw] : inc.vars) {
+    const size_t before = errors_->size();
+    bool cli = false;
+    Value v = Substitute(raw.value, raw.where, &cli);
+    if (errors_->size() != before) continue;
+    from_cli |= cli;
+    values[name] = RawValue{v, raw.where, true, false, ""};
+  }
+  // Relative paths among them resolve where they were written: this file's
+  // folder, or the current directory when a --set value went in.
+  GraphParser inner(inc.file, inc.display, from_cli ? cwd_ : dir_, errors_);
+  inner.depth_ = depth_ + 1;
+  std::vector<NodeSpec> nodes;
+  inner.ParseIncluded(text, values, inc, &nodes, graph);
+  // Wires to the included graph's own nodes get the prefix; a wire to any
+  // other name came in through a variable and names a node of this graph.
+  std::set<std::string> names;
+  for (const auto& n : nodes) names.insert(n.name);
+  for (auto& n : nodes) {
+    n.name = inc.prefix + n.name;
+    for (auto& [port, spec] : n.inputs)
+      for (auto& w : spec.wires)
+        if (names.count(w.node)) w.node = inc.prefix + w.node;
+  }
+  for (const auto& [target, raw] : inc.inputs) {
+    const size_t dot = target.find('.');
+    const std::string node_name = target.substr(0, dot);
+    auto node = std::find_if(nodes.begin(), nodes.end(),
+                             [&](const NodeSpec& n) { return n.name == inc.prefix + node_name; });
+    if (dot == std::string::npos || dot + 1 == target.size() || node == nodes.end()) {
+      const std::vector<std::string> known(names.begin(), names.end());
+      Fail(raw.where, "include '" + inc.name + "': inputs key '" + target + "' must be NODE.PORT of a node of " +
+                          inc.display + Hint(node_name, known) + "; nodes: " + JoinNames(known));
+      continue;
+    }
+    bool cli = false;
+    const size_t before = errors_->size();
+    const Value v = Substitute(raw.value, raw.where, &cli);
+    if (v.is_component) {
+      Fail(raw.where, "include '" + inc.name + "': input '" + target + "': expected NODE.PORT or a list of them");
+      continue;
+    }
+    InputSpec spec = WiresOf(v, raw.where);
+    spec.broken = errors_->size() != before;
+    node->inputs[target.substr(dot + 1)] = spec;
+  }
+  for (auto& n : nodes) {
+    if (std::any_of(variant->nodes.begin(), variant->nodes.end(),
+                    [&](const NodeSpec& o) { return o.name == n.name; })) {
+      Fail(inc.where, "include '" + inc.name + "': node '" + n.name + "' of " + inc.display +
+                          " has the name of a node already in the graph (expected distinct names: set a prefix)");
+      continue;
+    }
+    variant->nodes.push_back(std::move(n));
+  }
+}
+
+void GraphParser::ParseIncluded(const std::string& text, const std::map<std::string, RawValue>& values,
+                                const IncludeSpec& includer, std::vector<NodeSpec>* nodes, Graph* graph) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(Mask(text));
+  } catch (const YAML::Exception& e) {
+    return Fail(At(e.mark), "YAML syntax: " + e.msg);
+  }
+  if (!root.IsMap()) return Fail({display_, 1, 1}, "expected a mapping with 'locforge: 1' and 'nodes:'");
+  CheckDuplicateKeys(root);
+  if (const YAML::Node matrix = root["matrix"])
+    Fail(At(matrix), "an included graph has no matrix (include '" + includer.name +
+                         "'); put the matrix in the including graph and pass its keys as vars");
+  const YAML::Node version = root["locforge"];
+  if (!version || !version.IsScalar() || version.Scalar() != "1")
+    Fail(version ? At(version) : SourceLocation{display_, 1, 1}, "expected 'locforge: 1' (the graph format version)");
+  if (const YAML::Node vars = root["vars"]) ReadVars(vars);
+  for (const auto& [name, value] : values) {
+    if (!vars_.count(name)) {
+      Fail(value.where, "include '" + includer.name + "': " + includer.display + " has no variable '" + name + "'" +
+                            Hint(name, KnownNames()) + "; expected one of: " + JoinNames(KnownNames()));
+      continue;
+    }
+    vars_[name] = value;
+  }
+  CheckRequiredVars(&includer);
+  if (const YAML::Node paths = root["plugin_paths"]) {
+    RawValue raw;
+    if (ReadRaw(paths, "plugin_paths", &raw)) {
+      bool cli = false;
+      for (const auto& p : Substitute(raw.value, raw.where, &cli).items) {
+        const fs::path folder = (dir_ / p).lexically_normal();
+        if (std::none_of(graph->plugin_paths.begin(), graph->plugin_paths.end(),
+                         [&](const auto& known) { return known.first == folder; }))
+          graph->plugin_paths.emplace_back(folder, raw.where);
+      }
+    }
+  }
+  GraphVariant variant;
+  if (const YAML::Node n = root["nodes"]; n && n.IsMap()) ReadNodes(n, &variant);
+  if (const YAML::Node inc = root["include"]) ReadIncludes(inc);
+  for (const auto& sub : includes_) ExpandInclude(sub, &variant, graph);
+  *nodes = std::move(variant.nodes);
 }
 
 void GraphParser::ApplyNodeOverrides(GraphVariant* variant) {
@@ -553,8 +803,8 @@ bool GraphParser::Parse(const std::string& text, const std::vector<Override>& se
     return false;
   }
   CheckDuplicateKeys(root);
-  static const std::vector<std::string> kTopKeys = {
-      "locforge", "description", "plugin_paths", "vars", "matrix", "nodes", "slurm"};
+  static const std::vector<std::string> kTopKeys = {"locforge", "description", "plugin_paths", "vars",
+                                                    "matrix",   "include",     "nodes",        "slurm"};
   for (auto it = root.begin(); it != root.end(); ++it) {
     const std::string key = it->first.Scalar();
     if (std::find(kTopKeys.begin(), kTopKeys.end(), key) == kTopKeys.end())
@@ -573,6 +823,8 @@ bool GraphParser::Parse(const std::string& text, const std::vector<Override>& se
   if (const YAML::Node matrix = root["matrix"]) ReadMatrix(matrix);
   if (const YAML::Node slurm = root["slurm"]) ReadSlurm(slurm, &graph->slurm);
   ApplyVarOverrides(sets);
+  CheckRequiredVars(nullptr);
+  if (const YAML::Node inc = root["include"]) ReadIncludes(inc);
   if (const YAML::Node paths = root["plugin_paths"]) {
     RawValue raw;
     if (ReadRaw(paths, "plugin_paths", &raw)) {
@@ -582,15 +834,17 @@ bool GraphParser::Parse(const std::string& text, const std::vector<Override>& se
     }
   }
   const YAML::Node nodes = root["nodes"];
-  if (!nodes || !nodes.IsMap() || nodes.size() == 0) {
+  const bool has_nodes = nodes && nodes.IsMap() && nodes.size() > 0;
+  if (!has_nodes && (includes_.empty() || (nodes && !nodes.IsMap() && !nodes.IsNull()))) {
     Fail(nodes ? At(nodes) : SourceLocation{display_, 1, 1},
-         "expected 'nodes:' with at least one node");
+         "expected 'nodes:' with at least one node (or 'include:')");
   } else {
     for (GraphVariant variant : ExpandMatrix()) {
       matrix_env_.clear();
       resolved_vars_.clear();
       for (const auto& [key, value] : variant.matrix_values) matrix_env_[key] = value;
-      ReadNodes(nodes, &variant);
+      if (has_nodes) ReadNodes(nodes, &variant);
+      for (const auto& inc : includes_) ExpandInclude(inc, &variant, graph);
       ApplyNodeOverrides(&variant);
       graph->variants.push_back(std::move(variant));
     }

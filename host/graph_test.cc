@@ -6,6 +6,8 @@
 
 #include <fstream>
 
+#include "locforge/fs.h"
+
 #include "test_stages.h"
 #include "workspace.h"
 #include "testing.h"
@@ -450,6 +452,129 @@ TEST(GraphParse, ComponentFromTheCommandLine) {
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(out[0].nodes[0].params.at("backend"),
             "registration/fake_icp" + std::string(1, LF_COMPONENT_SEPARATOR) + "iterations=7");
+}
+
+TEST(GraphParse, RequiredVariableSaysHowToGiveIt) {
+  const std::string graph = R"(locforge: 1
+vars:
+  dataset: !required "DIR: a kapture recording"
+  count: 8
+nodes:
+  a: {stage: source/folder, params: {root: "${dataset}"}}
+)";
+  const std::string errors = Check(graph);
+  EXPECT_NE(errors.find("/graphs/g.yaml:3:"), std::string::npos) << errors;
+  EXPECT_NE(errors.find("error: variable 'dataset' is required (DIR: a kapture recording): "
+                        "give it with --set dataset=DIR"),
+            std::string::npos)
+      << errors;
+  // Given on the command line, the graph is valid (the folder must exist).
+  const fs::path dir = locforge::testing::MakeTempDir("graph_required");
+  EXPECT_EQ(Check(graph, {{"dataset", dir.string()}}), "");
+  // Without a capitalised name first, the message says VALUE.
+  EXPECT_NE(Check("locforge: 1\nvars: {x: !required the x}\nnodes:\n  a: {stage: source/images}\n")
+                .find("give it with --set x=VALUE"),
+            std::string::npos);
+  fs::remove_all(dir);
+}
+
+// A graph including two others: names prefixed, variables set from the
+// including graph (its own variables and matrix keys substituted), inputs of
+// included nodes wired to nodes of the includer, --set on included nodes.
+TEST(GraphParse, IncludeAddsPrefixedNodesWiredToTheIncluder) {
+  const fs::path dir = locforge::testing::MakeTempDir("graph_include");
+  fs::create_directories(dir / "parts");
+  WriteFileAtomic(dir / "parts/features.yaml", R"(locforge: 1
+vars:
+  count: 4
+  images: !required the dataset node
+nodes:
+  sift:
+    stage: features/sift
+    params: {count: "${count}"}
+    inputs: {images: "${images}"}
+  merged:
+    stage: filter/features
+    inputs: {features: [sift]}
+)");
+  WriteFileAtomic(dir / "parts/match.yaml", R"(locforge: 1
+nodes:
+  pairs: {stage: match/pairs}
+)");
+  const std::string main = R"(locforge: 1
+vars: {n: 6}
+matrix: {m: [1, 2]}
+include:
+  a:
+    graph: parts/features.yaml
+    prefix: a_
+    vars: {count: "${n}${m}", images: src}
+  b:
+    graph: parts/match.yaml
+    inputs: {pairs.features: a_merged, pairs.extra: a_sift}
+nodes:
+  src: {stage: source/images}
+)";
+  WriteFileAtomic(dir / "main.yaml", main);
+  Graph g;
+  Diagnostics errors;
+  ASSERT_TRUE(LoadGraph(dir / "main.yaml", {{"a_sift.scales", "[1, 2]"}}, &g, &errors))
+      << (errors.empty() ? "" : errors[0].ToString());
+  ASSERT_EQ(g.variants.size(), 2u);
+  std::vector<std::string> names;
+  for (const auto& n : g.variants[1].nodes) names.push_back(n.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"src", "a_sift", "a_merged", "pairs"}));
+  const NodeSpec& sift = NodeOf(g, "a_sift", 1);
+  EXPECT_EQ(sift.params.at("count").value.scalar(), "62");
+  EXPECT_EQ(sift.params.at("scales").value.items, (std::vector<std::string>{"1", "2"}));
+  EXPECT_EQ(sift.inputs.at("images").wires.at(0).node, "src");
+  EXPECT_EQ(NodeOf(g, "a_merged", 1).inputs.at("features").wires.at(0).node, "a_sift");
+  const NodeSpec& pairs = NodeOf(g, "pairs", 1);
+  EXPECT_EQ(pairs.inputs.at("features").wires.at(0).node, "a_merged");
+  EXPECT_EQ(pairs.inputs.at("extra").wires.at(0).node, "a_sift");
+  // Positions inside an included graph name its file.
+  EXPECT_EQ(sift.where.file, (dir / "parts/features.yaml").lexically_normal().string());
+  EXPECT_EQ(sift.where.line, 6);
+  static FakeStages stages;
+  ResolvedGraph resolved;
+  Diagnostics check;
+  EXPECT_TRUE(ResolveVariant(g.variants[0], stages.lookup(), &resolved, &check))
+      << (check.empty() ? "" : check[0].ToString());
+
+  // Mistakes name the include and what was expected.
+  WriteFileAtomic(dir / "bad.yaml", R"(locforge: 1
+include:
+  a:
+    graph: parts/features.yaml
+    vars: {cont: 3}
+    inputs: {sfit.images: x}
+  b: {graph: parts/missing.yaml}
+  c: {graph: parts/match.yaml}
+  d: {graph: parts/match.yaml}
+)");
+  Graph bad;
+  Diagnostics e;
+  EXPECT_FALSE(LoadGraph(dir / "bad.yaml", {}, &bad, &e));
+  std::string text;
+  for (const auto& d : e) text += d.ToString() + "\n";
+  for (const char* expected :
+       {"bad.yaml:5:12: error: include 'a': ", "has no variable 'cont' (did you mean 'count'?)",
+        "bad.yaml:3:3: error: include 'a': variable 'images' of ",
+        "is required (the dataset node); set it under the include's vars",
+        "bad.yaml:6:14: error: include 'a': inputs key 'sfit.images' must be NODE.PORT of a node of ",
+        "(did you mean 'sift'?)", "bad.yaml:7:14: error: include 'b': graph file ",
+        "bad.yaml:9:3: error: include 'd': node 'pairs' of ",
+        "has the name of a node already in the graph (expected distinct names: set a prefix)"})
+    EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n---\n" << text;
+  // A graph including itself stops.
+  WriteFileAtomic(dir / "self.yaml", "locforge: 1\ninclude:\n  me: {graph: self.yaml, prefix: x}\n");
+  Graph self;
+  Diagnostics se;
+  EXPECT_FALSE(LoadGraph(dir / "self.yaml", {}, &self, &se));
+  std::string st;
+  for (const auto& d : se) st += d.ToString() + "\n";
+  EXPECT_NE(st.find("includes nested more than 8 deep"), std::string::npos) << st;
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -20,7 +20,8 @@ struct TrajectoryEvalOptions {
   bool rpe_all_pairs = false;
   static void Declare(ParamSchema<TrajectoryEvalOptions>& s) {
     using O = TrajectoryEvalOptions;
-    s.Add("reference", &O::reference, "Reference trajectory: kapture folder, TUM or KITTI file").Path().Required();
+    s.Add("reference", &O::reference,
+          "Reference trajectory: kapture folder, TUM or KITTI file (or wire the reference input)").Path();
     s.Add("reference_format", &O::reference_format, "Format of the reference").Choices({"auto", "kapture", "tum", "kitti"});
     s.Add("device", &O::device, "kapture device evaluated (estimate and kapture reference)");
     s.Add("seconds_per_unit", &O::seconds_per_unit, "kapture timestamp unit (s)").Range(1e-12, 1);
@@ -37,7 +38,9 @@ class TrajectoryEval : public Stage<TrajectoryEvalOptions> {
  public:
   static StageMeta Meta() {
     StageMeta meta = {"eval", "trajectory", "ATE and RPE (translation, rotation) against a reference, evo-compatible",
-            {{"estimate", "kapture.trajectories", "Estimated trajectory (sensors/trajectories.txt)"}},
+            {{"estimate", "kapture.trajectories", "Estimated trajectory (sensors/trajectories.txt)"},
+             {"reference", "kapture.dataset", "the reference kapture (e.g. a simulated recording), instead of the "
+              "reference parameter", LF_PORT_OPTIONAL}},
             {{"report", "report", "report.md, metrics.csv, metrics.json, estimate/reference .tum and .kitti"}}};
     meta.version = "0.1.0";
     return meta;
@@ -56,7 +59,7 @@ void TrajectoryEval::Run(RunContext& ctx) {
   const TrajectoryEvalOptions& o = options();
   Trajectory estimate = ReadKaptureTrajectory(ctx.Input("estimate"), o.device, o.seconds_per_unit);
   std::string format = o.reference_format;
-  const fs::path ref_path = o.reference;
+  const fs::path ref_path = ctx.PathOrInput("eval/trajectory", "reference", o.reference, "reference");
   if (format == "auto") format = fs::is_directory(ref_path) ? "kapture" : "tum";
   Trajectory reference = format == "kapture" ? ReadKaptureTrajectory(ref_path, o.device, o.seconds_per_unit)
                          : format == "kitti" ? ReadKitti(ref_path)

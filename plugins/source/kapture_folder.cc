@@ -25,7 +25,8 @@ struct KaptureFolderOptions {
   std::vector<std::string> subfolders;  // Kapture roots under `path` merged into one (cameras only).
   std::string images;              // Regex: keep only the images whose path matches (cameras only).
   static void Declare(ParamSchema<KaptureFolderOptions>& s) {
-    s.Add("path", &KaptureFolderOptions::path, "kapture root (sensors/, reconstruction/)").Path().Required();
+    s.Add("path", &KaptureFolderOptions::path,
+          "kapture root (sensors/, reconstruction/), or wire the kapture input").Path();
     s.Add("copy_records_data", &KaptureFolderOptions::copy_records_data,
           "copy sensors/records_data (images); off when only features are used");
     s.Add("subfolders", &KaptureFolderOptions::subfolders,
@@ -58,23 +59,26 @@ class KaptureFolder : public Stage<KaptureFolderOptions> {
  public:
   static StageMeta Meta() {
     StageMeta meta = {"source", "kapture_folder", "A kapture dataset folder (e.g. the map or the queries)",
-            {}, {{"dataset", "kapture.dataset", "the dataset, re-emitted"}}};
+            {{"kapture", "kapture.dataset", "the kapture root, instead of the path parameter (e.g. a ground truth "
+              "made in the same graph)", LF_PORT_OPTIONAL}},
+            {{"dataset", "kapture.dataset", "the dataset, re-emitted"}}};
     meta.version = "1.1.0";
     return meta;
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override {
+    const fs::path root = ctx.PathOrInput("source/kapture_folder", "path", options().path, "kapture");
     if (!options().subfolders.empty() || !options().images.empty()) {
       std::vector<MergeSource> sources;
-      if (options().subfolders.empty()) sources.push_back({fs::path(options().path), ""});
+      if (options().subfolders.empty()) sources.push_back({root, ""});
       for (const auto& sub : options().subfolders)
-        sources.push_back({sub == "." ? fs::path(options().path) : fs::path(options().path) / sub,
+        sources.push_back({sub == "." ? root : root / sub,
                            sub == "." ? "" : fs::path(sub).generic_string()});
       const MergeReport r =
           MergeCameraKaptures(sources, ctx.output_dir(), options().copy_records_data, options().images);
       std::string subs;
       for (const auto& sub : options().subfolders) subs += (subs.empty() ? "" : ", ") + sub;
-      ctx.Info("kapture " + options().path + " [" + subs + "] merged: " +
+      ctx.Info("kapture " + root.string() + " [" + subs + "] merged: " +
                std::to_string(r.sensors) + " sensors, " + std::to_string(r.images) + " images, " +
                std::to_string(r.poses) + " poses, " + std::to_string(r.data_files) +
                " image files");
@@ -83,8 +87,8 @@ class KaptureFolder : public Stage<KaptureFolderOptions> {
     kp::CopyOptions o;
     o.copy_records_data = options().copy_records_data;
     o.overwrite = true;
-    const auto report = kp::CopyKapture(options().path, ctx.output_dir(), o);
-    ctx.Info("kapture " + options().path + ": " + std::to_string(report.records) + " records, " +
+    const auto report = kp::CopyKapture(root, ctx.output_dir(), o);
+    ctx.Info("kapture " + root.string() + ": " + std::to_string(report.records) + " records, " +
              std::to_string(report.data_files) + " data files copied");
   }
 };

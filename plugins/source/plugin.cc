@@ -12,6 +12,11 @@ namespace locforge::colmap_stages {
 LOCFORGE_DECLARE_STAGE(AddKaptureFolder);
 }  // namespace locforge::colmap_stages
 
-LOCFORGE_PLUGIN("source", "0.6.0", "Sources: kapture folders, LiDAR keyframes",
+namespace locforge::velodyne {
+LOCFORGE_DECLARE_STAGE(AddVelodynePcap);
+}  // namespace locforge::velodyne
+
+LOCFORGE_PLUGIN("source", "0.7.0", "Sources: kapture folders, LiDAR keyframes, Velodyne packet captures",
                 locforge::Exported<locforge::lidar::AddPcdKeyframes>,
-                locforge::Exported<locforge::colmap_stages::AddKaptureFolder>)
+                locforge::Exported<locforge::colmap_stages::AddKaptureFolder>,
+                locforge::Exported<locforge::velodyne::AddVelodynePcap>)

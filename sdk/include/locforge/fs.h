@@ -55,6 +55,16 @@ std::string ReadFile(const fs::path& path);
 fs::path SafeJoin(const fs::path& root, const std::string& relative,
                   const std::string& origin = "");
 
+// Joins a record path of a dataset file (e.g. records_camera.txt) to its
+// sensors/records_data folder, refusing only what escapes lexically: an
+// absolute path, or one that climbs above the root with "..". Symbolic links
+// under the root are followed wherever they lead: they are the dataset
+// owner's choice (kapture's importers write records_data as links with
+// --image_transfer link_absolute or link_relative). Throws InputError naming
+// `origin`.
+fs::path JoinRecordPath(const fs::path& root, const std::string& relative,
+                        const std::string& origin = "");
+
 // A unique temp name beside `path` (same folder, so rename is atomic).
 fs::path TempSibling(const fs::path& path);
 

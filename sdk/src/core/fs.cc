@@ -22,10 +22,20 @@ fs::path TempSibling(const fs::path& path) {
   return path.parent_path() / name.str();
 }
 
-void LinkOrCopyFile(const fs::path& source, const fs::path& target) {
+void LinkOrCopyFile(const fs::path& source_path, const fs::path& target) {
   fs::create_directories(target.parent_path());
   const fs::path temp = TempSibling(target);
   std::error_code ec;
+  // link(2) does not follow a symbolic link: a hard link to a relative one
+  // would dangle in its new folder, so link (or copy) the file it names.
+  fs::path source = source_path;
+  if (fs::is_symlink(source, ec)) {
+    source = fs::canonical(source, ec);
+    if (ec)
+      throw Error("cannot link or copy " + source_path.string() + ": its symbolic link does not resolve: " +
+                  ec.message());
+  }
+  ec.clear();
   fs::create_hard_link(source, temp, ec);
   if (ec) {
     ec.clear();
@@ -150,14 +160,14 @@ fs::path ResolveSymlinks(const fs::path& path) {
 
 }  // namespace
 
-fs::path SafeJoin(const fs::path& root, const std::string& relative, const std::string& origin) {
+fs::path JoinRecordPath(const fs::path& root, const std::string& relative, const std::string& origin) {
   const std::string where = origin.empty() ? root.string() : origin;
   if (relative.empty()) throw InputError(where + ": empty path");
   const fs::path rel(relative);
   if (rel.is_absolute() || relative[0] == '/' || relative[0] == '\\')
     throw InputError(where + ": path '" + relative + "' is absolute; dataset paths must be relative to " +
                      root.string());
-  // Lexical check first: no component may climb above the root.
+  // No component may climb above the root.
   int depth = 0;
   for (const auto& part : rel) {
     const std::string s = part.string();
@@ -169,7 +179,12 @@ fs::path SafeJoin(const fs::path& root, const std::string& relative, const std::
       ++depth;
     }
   }
-  const fs::path joined = (root / rel).lexically_normal();
+  return (root / rel).lexically_normal();
+}
+
+fs::path SafeJoin(const fs::path& root, const std::string& relative, const std::string& origin) {
+  const std::string where = origin.empty() ? root.string() : origin;
+  const fs::path joined = JoinRecordPath(root, relative, origin);
   // Then resolve symlinks, dangling ones included (an output written through
   // a dangling link lands at its target): a link must not lead outside either.
   // Fail closed: a path that cannot be resolved (a link loop, no permission)

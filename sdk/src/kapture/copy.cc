@@ -141,9 +141,12 @@ CopyReport CopyKapture(const fs::path& src, const fs::path& dst, const CopyOptio
     if (!it->is_regular_file(type_ec)) continue;
     const fs::path& file = it->path();
     const std::string rel = Rel(file, src);
-    // A link may not lead out of the dataset.
+    // A link may not lead out of the dataset, except under records_data,
+    // where links are the owner's choice (kapture's link imports): the
+    // copy holds the files they name.
     std::error_code ec;
-    if (fs::is_symlink(file, ec)) SafeJoin(src, rel, rel);
+    if (rel.rfind(std::string(layout::kRecordsData) + "/", 0) != 0 && fs::is_symlink(file, ec))
+      SafeJoin(src, rel, rel);
     const fs::path out = dst / rel;
     const fs::path parent = file.parent_path();
     if (rel == layout::kSensors) {

@@ -438,27 +438,16 @@ std::vector<std::string> Format(const GenericRecord& r) {
 
 }  // namespace
 
-// SafeJoin resolves every component of a path (several stats); records of
-// one folder share their parent, so each folder is resolved once and a
-// record then costs one lstat (is the file itself a link?).
+// Record paths are checked lexically when parsed (CheckRelativePath: no
+// absolute path, no climbing out of records_data). Symbolic links under
+// records_data are the dataset owner's choice (kapture's importers write
+// them) and are followed; `root` only documents where paths are relative to.
 template <class Record>
 struct RecordsReader<Record>::PathCheck {
   fs::path root;
-  std::unordered_set<std::string> safe_dirs;
 
   void Check(const std::string& relative, const std::string& origin) {
-    if (root.empty()) return;
-    const size_t slash = relative.find_last_of('/');
-    if (slash != std::string::npos) {
-      const std::string dir = relative.substr(0, slash);
-      if (!safe_dirs.count(dir)) {
-        SafeJoin(root, dir, origin);
-        if (safe_dirs.size() < 1000000) safe_dirs.insert(dir);
-      }
-    }
-    std::error_code ec;
-    if (fs::is_symlink(root / relative, ec) || relative.find('\\') != std::string::npos)
-      SafeJoin(root, relative, origin);
+    if (!root.empty()) JoinRecordPath(root, relative, origin);
   }
 };
 

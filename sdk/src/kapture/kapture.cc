@@ -109,7 +109,7 @@ std::vector<std::string> Kapture::CameraImages() const {
 }
 
 fs::path Kapture::RecordDataPath(const std::string& relative, const std::string& origin) const {
-  return SafeJoin(root_ / layout::kRecordsData, relative,
+  return JoinRecordPath(root_ / layout::kRecordsData, relative,
                   origin.empty() ? std::string(layout::kRecordsData) : origin);
 }
 

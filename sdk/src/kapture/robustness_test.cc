@@ -122,11 +122,46 @@ TEST_F(HostileKapture, PathTraversalAbsolute) {
                    {"sensors/records_camera.txt:3", "'/etc/passwd'", "absolute"});
 }
 
-TEST_F(HostileKapture, PathTraversalThroughSymlink) {
-  fs::create_directory_symlink("/etc", root_ / layout::kRecordsData / "etc");
-  Records("1, cam, etc/passwd\n");
+// kapture's importers (--image_transfer link_absolute / link_relative) write
+// records_data as symbolic links to the original images: links the dataset's
+// owner placed are followed wherever they lead; what escapes lexically (an
+// absolute record path, "..") is still refused.
+TEST_F(HostileKapture, OwnerLinksInRecordsDataAreFollowed) {
+  const fs::path originals = root_.parent_path() / (root_.filename().string() + "_originals");
+  WriteFileAtomic(originals / "cam/b.jpg", "absolute link target");
+  WriteFileAtomic(originals / "cam/c.jpg", "relative link target");
+  const fs::path data = root_ / layout::kRecordsData;
+  fs::create_directories(data / "cam");
+  fs::create_symlink(originals / "cam/b.jpg", data / "cam/b.jpg");                               // link_absolute
+  fs::create_symlink(fs::relative(originals / "cam/c.jpg", data / "cam"), data / "cam/c.jpg");  // link_relative
+  ASSERT_TRUE(fs::read_symlink(data / "cam/c.jpg").is_relative());
+  fs::create_directory_symlink(originals / "cam", data / "linked_folder");  // a whole folder linked
+  Records("1, cam, a.jpg\n2, cam, cam/b.jpg\n3, cam, cam/c.jpg\n4, cam, linked_folder/b.jpg\n");
+  Kapture k(root_);
+  EXPECT_EQ(k.ReadDataRecords("camera").size(), 4u);
+  EXPECT_EQ(ReadFile(k.ExistingRecordDataPath("cam/b.jpg")), "absolute link target");
+  EXPECT_EQ(ReadFile(k.ExistingRecordDataPath("cam/c.jpg")), "relative link target");
+  EXPECT_EQ(ReadFile(k.ExistingRecordDataPath("linked_folder/b.jpg")), "absolute link target");
+  const KaptureSummary summary = InspectKapture(root_);
+  ASSERT_EQ(summary.records.size(), 1u);
+  EXPECT_EQ(summary.records[0].missing_files, 0);
+  // A copy holds the files the links name, not links.
+  const fs::path out = root_.parent_path() / (root_.filename().string() + "_copy");
+  const CopyReport report = CopyKapture(root_, out);
+  EXPECT_TRUE(report.missing_data_files.empty());
+  EXPECT_FALSE(fs::is_symlink(out / layout::kRecordsData / "cam/c.jpg"));
+  EXPECT_EQ(ReadFile(out / layout::kRecordsData / "cam/b.jpg"), "absolute link target");
+  EXPECT_EQ(ReadFile(out / layout::kRecordsData / "cam/c.jpg"), "relative link target");
+  // Lexical escapes stay refused, links or not.
+  Records("1, cam, cam/../../outside.jpg\n");
   ExpectInputError([&] { Kapture(root_).ReadDataRecords("camera"); },
-                   {"sensors/records_camera.txt:3", "symbolic link"});
+                   {"sensors/records_camera.txt:3", "escapes"});
+  Records("1, cam, " + (originals / "cam/b.jpg").string() + "\n");
+  ExpectInputError([&] { Kapture(root_).ReadDataRecords("camera"); },
+                   {"sensors/records_camera.txt:3", "absolute"});
+  ExpectInputError([&] { Kapture(root_).RecordDataPath("../x.jpg", "test"); }, {"test", "escapes"});
+  fs::remove_all(out);
+  fs::remove_all(originals);
 }
 
 TEST_F(HostileKapture, FeatureNameTraversal) {

@@ -65,10 +65,11 @@ std::vector<std::string> FormatPoseFields(const Pose& pose, PoseParts parts,
 // Records are kept in file order; nothing is sorted or deduplicated.
 //
 // DataRecord paths are checked: an absolute path or one that climbs out of
-// records_data ("..") is refused with InputError naming file and line; when
-// `records_data_root` is given, symbolic links leading out of it are refused
-// too (SafeJoin). The file's existence is NOT required here (see
-// Kapture::RecordDataPath and the inspection report).
+// records_data ("..") is refused with InputError naming file and line.
+// Symbolic links under records_data are followed: links the dataset's owner
+// placed there (kapture's link_absolute / link_relative imports) are the
+// owner's choice (JoinRecordPath). The file's existence is NOT required here
+// (see Kapture::RecordDataPath and the inspection report).
 template <class Record>
 class RecordsReader {
  public:

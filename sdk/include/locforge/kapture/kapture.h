@@ -83,7 +83,8 @@ class Kapture {
   std::vector<std::string> RecordTypes() const;
   bool HasRecords(const std::string& sensor_type) const;
   // Streams records_<type>.txt (O(one record) memory). DataRecord paths are
-  // checked against records_data (no escape, no symlink out).
+  // checked against records_data (no absolute path, no ".." out of it;
+  // symbolic links the owner placed under it are followed).
   template <class Record>
   RecordsReader<Record> StreamRecords(const std::string& sensor_type) const {
     return RecordsReader<Record>(root_ / layout::RecordsFile(sensor_type),
@@ -98,7 +99,8 @@ class Kapture {
   // per-image stages).
   std::vector<std::string> CameraImages() const;
   // Absolute path of a record's file under sensors/records_data, refusing
-  // escapes (InputError naming `origin`, e.g. "sensors/records_camera.txt:3").
+  // lexical escapes: absolute, ".." (InputError naming `origin`, e.g.
+  // "sensors/records_camera.txt:3"). Links under it are followed.
   fs::path RecordDataPath(const std::string& relative, const std::string& origin = "") const;
   // Same, and throws InputError "... missing file" when it does not exist.
   fs::path ExistingRecordDataPath(const std::string& relative,
