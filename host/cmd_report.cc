@@ -492,15 +492,7 @@ std::string ReportBuilder::Graph() {
 
 // The stages' own warnings, from the run's log (beside the record).
 void ReportBuilder::CollectLogWarnings() {
-  fs::path log = workspace_ / "logs";
-  for (const auto& n : nodes_) (void)n;
-  std::error_code ec;
-  fs::path newest;
-  for (fs::directory_iterator it(log, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.rfind("run-", 0) == 0 && it->path().extension() == ".log" && (newest.empty() || name > newest.filename().string()))
-      newest = it->path();
-  }
+  const fs::path newest = NewestRun(workspace_, ".log");
   if (newest.empty()) return;
   std::ifstream in(newest);
   std::string line;

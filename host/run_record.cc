@@ -154,16 +154,32 @@ RunRecord ReadRunRecord(const fs::path& file) {
   return r;
 }
 
-fs::path NewestRunRecord(const fs::path& workspace) {
+// "run-<stamp>[-<n>].<ext>" in the order the runs started: runs within one
+// second get "-1", "-2", ... after the first, which a plain string order
+// would put before it ('-' < '.').
+std::pair<std::string, int> RunOrder(const fs::path& file) {
+  const std::string stem = file.stem().string();
+  const size_t dash = stem.find('-', 4);
+  if (dash == std::string::npos) return {stem, 0};
+  try {
+    return {stem.substr(0, dash), std::stoi(stem.substr(dash + 1))};
+  } catch (const std::exception&) {
+    return {stem, 0};
+  }
+}
+
+fs::path NewestRun(const fs::path& workspace, const std::string& extension) {
   fs::path newest;
   std::error_code ec;
   for (fs::directory_iterator it(workspace / "logs", ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (name.rfind("run-", 0) == 0 && it->path().extension() == ".json" &&
-        (newest.empty() || name > newest.filename().string()))
+    if (name.rfind("run-", 0) == 0 && it->path().extension() == extension &&
+        (newest.empty() || RunOrder(it->path()) > RunOrder(newest)))
       newest = it->path();
   }
   return newest;
 }
+
+fs::path NewestRunRecord(const fs::path& workspace) { return NewestRun(workspace, ".json"); }
 
 }  // namespace locforge::host

@@ -48,6 +48,8 @@ std::string FormatRunRecord(const RunRecord& record);  // JSON
 RunRecord ReadRunRecord(const fs::path& file);
 // The newest logs/run-*.json of a workspace; empty when there is none.
 fs::path NewestRunRecord(const fs::path& workspace);
+// The newest WORKSPACE/logs/run-*<extension> (".log", ".json") by start order.
+fs::path NewestRun(const fs::path& workspace, const std::string& extension);
 // A parameter's canonical value as a person reads it: list elements joined
 // by ", ", a component as "kind/name {a=1, b=2}".
 std::string DisplayValue(const std::string& canonical);
