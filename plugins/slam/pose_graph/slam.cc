@@ -9,10 +9,6 @@ namespace locforge::lidar {
 
 namespace {
 
-Pose YawPose(double yaw, const Eigen::Vector3d& t = Eigen::Vector3d::Zero()) {
-  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())), t);
-}
-
 Matrix6d DiagonalInformation(double sigma_t, double sigma_r_rad) {
   Vector6d d;
   d << Eigen::Vector3d::Constant(1 / (sigma_t * sigma_t)), Eigen::Vector3d::Constant(1 / (sigma_r_rad * sigma_r_rad));

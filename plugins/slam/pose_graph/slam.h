@@ -7,6 +7,7 @@
 #ifndef LOCFORGE_PLUGINS_LIDAR_SLAM_H_
 #define LOCFORGE_PLUGINS_LIDAR_SLAM_H_
 
+#include <cmath>
 #include <functional>
 #include <map>
 #include <memory>
@@ -23,6 +24,16 @@
 #include "slam_options.h"
 
 namespace locforge::lidar {
+
+// A turn about the vertical (rad), and the heading of a pose (rad): the
+// platform moves on a level floor.
+inline Pose YawPose(double yaw, const Eigen::Vector3d& t = Eigen::Vector3d::Zero()) {
+  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())), t);
+}
+inline double YawOf(const Pose& T) {
+  const Eigen::Vector3d x = T.R().col(0);
+  return std::atan2(x.y(), x.x());
+}
 
 // What the algorithm reports and asks of its caller.
 struct SlamHooks {

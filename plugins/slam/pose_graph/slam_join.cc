@@ -14,16 +14,11 @@ namespace locforge::lidar {
 
 namespace {
 
-Pose YawPose(double yaw, const Eigen::Vector3d& t = Eigen::Vector3d::Zero()) {
-  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())), t);
-}
-
 // A frame as "x, y, yaw" (m, m, deg), rounded for the log.
 std::string FrameXYYaw(const Pose& T) {
-  const Eigen::Vector3d x = T.R().col(0);
   std::ostringstream s;
   s << std::fixed << std::setprecision(2) << T.t.x() << ", " << T.t.y() << ", " << std::setprecision(1)
-    << std::atan2(x.y(), x.x()) * 180.0 / M_PI;
+    << YawOf(T) * 180.0 / M_PI;
   return s.str();
 }
 
@@ -238,25 +233,18 @@ bool Slam::TryJoin(int A, int B, int round) {
   // from the turns above, up to half a step off, and may not reach a heading
   // between them, while a place elsewhere in a floor of repeated rooms can
   // find the heading with the wrong translation.
-  std::vector<double> place_yaws;
-  auto new_heading = [&](double yaw, const std::vector<double>& known) {
-    for (double k : known)
-      if (std::abs(std::remainder(yaw - k, 2 * M_PI)) < o_.join_max_rotation_deg * M_PI / 180) return false;
-    return true;
+  const double tolerance = o_.join_max_rotation_deg * M_PI / 180;
+  auto near = [&](double yaw, auto begin, auto end) {
+    return std::any_of(begin, end, [&](double k) { return std::abs(std::remainder(yaw - k, 2 * M_PI)) < tolerance; });
   };
-  std::vector<double> yaws;
-  for (const auto& c : candidates) {
-    const Eigen::Vector3d x = c.T_A_B.R().col(0);
-    yaws.push_back(std::atan2(x.y(), x.x()));
-  }
+  std::vector<double> yaws, place_yaws;
+  for (const auto& c : candidates) yaws.push_back(YawOf(c.T_A_B));
   for (size_t i = 0; i < yaws.size(); ++i) {
-    // A heading two loops agree on (one loop alone is as often noise).
-    if (new_heading(yaws[i], {yaws.begin(), yaws.begin() + i}) &&
-        !new_heading(yaws[i], {yaws.begin() + i + 1, yaws.end()})) {
-      std::vector<double> known = turns;
-      known.insert(known.end(), place_yaws.begin(), place_yaws.end());
-      if (new_heading(yaws[i], known)) place_yaws.push_back(yaws[i]);
-    }
+    // A heading two loops agree on (one loop alone is as often noise), first time seen, not tried yet.
+    const double y = yaws[i];
+    if (!near(y, yaws.begin(), yaws.begin() + i) && near(y, yaws.begin() + i + 1, yaws.end()) &&
+        !near(y, turns.begin(), turns.end()) && !near(y, place_yaws.begin(), place_yaws.end()))
+      place_yaws.push_back(y);
   }
   seed(place_yaws);
 

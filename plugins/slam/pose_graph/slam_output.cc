@@ -187,9 +187,8 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
                << ", \"frames\": [";
     for (size_t i = 0; i < at.frames.size(); ++i) {
       const JoinHypothesis& h = at.frames[i];
-      const Eigen::Vector3d x = h.T_A_B.R().col(0);
       joins_json << (i ? ", " : "") << "{\"x\": " << h.T_A_B.t.x() << ", \"y\": " << h.T_A_B.t.y()
-                 << ", \"z\": " << h.T_A_B.t.z() << ", \"yaw_deg\": " << std::atan2(x.y(), x.x()) * 180.0 / M_PI
+                 << ", \"z\": " << h.T_A_B.t.z() << ", \"yaw_deg\": " << YawOf(h.T_A_B) * 180.0 / M_PI
                  << ", \"start_offset_m\": " << h.start_offset_m << ", \"support\": " << h.support
                  << ", \"evidence\": " << EvidenceJson(h.evidence) << "}";
     }
