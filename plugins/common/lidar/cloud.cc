@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <tuple>
 #include <unordered_map>
@@ -26,9 +27,12 @@ Cloud ReadScan(const fs::path& path) {
   return cloud;
 }
 
-Cloud VoxelDownsample(const Cloud& cloud, double voxel) {
+namespace {
+// The reference: an ordered map of cells (used when a cell index leaves the
+// 21-bit range of the packed key below).
+Cloud VoxelDownsampleOrdered(const Cloud& cloud, double voxel) {
   struct Acc { Eigen::Vector3d sum = Eigen::Vector3d::Zero(); int n = 0; };
-  std::map<std::tuple<int, int, int>, Acc> grid;  // ordered: deterministic output
+  std::map<std::tuple<int, int, int>, Acc> grid;
   const double inv = 1.0 / voxel;
   for (const auto& p : cloud.points) {
     auto& a = grid[{static_cast<int>(std::floor(p.x() * inv)), static_cast<int>(std::floor(p.y() * inv)),
@@ -39,6 +43,49 @@ Cloud VoxelDownsample(const Cloud& cloud, double voxel) {
   Cloud out;
   out.points.reserve(grid.size());
   for (const auto& [key, a] : grid) out.points.push_back((a.sum / a.n).cast<float>());
+  return out;
+}
+}  // namespace
+
+Cloud VoxelDownsample(const Cloud& cloud, double voxel) {
+  // Cells found by hashing, then emitted in (x, y, z) order: the same points,
+  // the same sums in the same order, as the ordered map (so outputs stay
+  // byte-identical), without a tree walk per point. The packed key (21 bits per
+  // axis, offset by 2^20) orders like the (x, y, z) tuple.
+  constexpr int64_t kHalf = int64_t{1} << 20;
+  const double inv = 1.0 / voxel;
+  std::vector<uint64_t> keys(cloud.points.size());
+  for (size_t i = 0; i < cloud.points.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
+    uint64_t key = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double c = std::floor(p[a] * inv);
+      if (!(c >= -kHalf && c < kHalf)) return VoxelDownsampleOrdered(cloud, voxel);  // also NaN
+      key = (key << 21) | static_cast<uint64_t>(static_cast<int64_t>(c) + kHalf);
+    }
+    keys[i] = key;
+  }
+  std::unordered_map<uint64_t, uint32_t> slot_of;
+  slot_of.reserve(cloud.points.size() / 4 + 16);
+  std::vector<Eigen::Vector3d> sum;
+  std::vector<int> count;
+  std::vector<uint64_t> slot_key;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const auto [it, inserted] = slot_of.try_emplace(keys[i], static_cast<uint32_t>(sum.size()));
+    if (inserted) {
+      sum.push_back(Eigen::Vector3d::Zero());
+      count.push_back(0);
+      slot_key.push_back(keys[i]);
+    }
+    sum[it->second] += cloud.points[i].cast<double>();
+    ++count[it->second];
+  }
+  std::vector<uint32_t> order(sum.size());
+  for (uint32_t s = 0; s < order.size(); ++s) order[s] = s;
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return slot_key[a] < slot_key[b]; });
+  Cloud out;
+  out.points.reserve(order.size());
+  for (uint32_t s : order) out.points.push_back((sum[s] / count[s]).cast<float>());
   return out;
 }
 
@@ -56,7 +103,7 @@ uint64_t CellKey(int x, int y, int z) {
 }
 }  // namespace
 
-PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius) {
+PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius, int threads) {
   // Neighbours by a grid of cells of side h = radius / 4, searched in shells
   // of cells around the point's (Chebyshev ring s = 0, 1, ..., 4): a point in
   // a ring beyond s is at least s h away, so the search stops once k
@@ -75,48 +122,56 @@ PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius) {
     grid[CellKey(c.x(), c.y(), c.z())].push_back(static_cast<uint32_t>(i));
   }
   const double r2 = radius * radius;
+  // One residual per point (NaN: too few neighbours), computed in parallel;
+  // the statistics then read them in point order (same figures at any thread count).
+  std::vector<double> residual(map.size(), std::numeric_limits<double>::quiet_NaN());
+#pragma omp parallel num_threads(std::max(1, threads))
+  {
+    std::vector<std::pair<float, uint32_t>> near;
+#pragma omp for schedule(dynamic, 1024)
+    for (int64_t i = 0; i < static_cast<int64_t>(map.size()); ++i) {
+      const Eigen::Vector3f& p = map.points[i];
+      const Eigen::Vector3i c = cell(p);
+      near.clear();
+      for (int s = 0; s <= kRings; ++s) {
+        for (int dx = -s; dx <= s; ++dx)
+          for (int dy = -s; dy <= s; ++dy)
+            for (int dz = -s; dz <= s; ++dz) {
+              if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != s) continue;
+              const auto it = grid.find(CellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+              if (it == grid.end()) continue;
+              for (uint32_t j : it->second) {
+                if (static_cast<int64_t>(j) == i) continue;
+                const float d2 = (map.points[j] - p).squaredNorm();
+                if (d2 <= r2) near.emplace_back(d2, j);
+              }
+            }
+        if (static_cast<int>(near.size()) >= k) {
+          std::nth_element(near.begin(), near.begin() + (k - 1), near.end());
+          if (near[k - 1].first <= (s * h) * (s * h)) break;
+        }
+      }
+      if (static_cast<int>(near.size()) < k) continue;
+      std::nth_element(near.begin(), near.begin() + (k - 1), near.end());
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int n = 0; n < k; ++n) mean += map.points[near[n].second].cast<double>();
+      mean /= k;
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      for (int n = 0; n < k; ++n) {
+        const Eigen::Vector3d d = map.points[near[n].second].cast<double>() - mean;
+        cov += d * d.transpose();
+      }
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+      const Eigen::Vector3d normal = eig.eigenvectors().col(0);  // smallest eigenvalue
+      residual[i] = std::abs(normal.dot(p.cast<double>() - mean));
+    }
+  }
+  PlaneResidualStats out;
   std::vector<double> residuals;
   residuals.reserve(map.size());
-  PlaneResidualStats out;
-  std::vector<std::pair<float, uint32_t>> near;
-  for (size_t i = 0; i < map.size(); ++i) {
-    const Eigen::Vector3f& p = map.points[i];
-    const Eigen::Vector3i c = cell(p);
-    near.clear();
-    for (int s = 0; s <= kRings; ++s) {
-      for (int dx = -s; dx <= s; ++dx)
-        for (int dy = -s; dy <= s; ++dy)
-          for (int dz = -s; dz <= s; ++dz) {
-            if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != s) continue;
-            const auto it = grid.find(CellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-            if (it == grid.end()) continue;
-            for (uint32_t j : it->second) {
-              if (j == i) continue;
-              const float d2 = (map.points[j] - p).squaredNorm();
-              if (d2 <= r2) near.emplace_back(d2, j);
-            }
-          }
-      if (static_cast<int>(near.size()) >= k) {
-        std::nth_element(near.begin(), near.begin() + (k - 1), near.end());
-        if (near[k - 1].first <= (s * h) * (s * h)) break;
-      }
-    }
-    if (static_cast<int>(near.size()) < k) {
-      ++out.skipped;
-      continue;
-    }
-    std::nth_element(near.begin(), near.begin() + (k - 1), near.end());
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (int n = 0; n < k; ++n) mean += map.points[near[n].second].cast<double>();
-    mean /= k;
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (int n = 0; n < k; ++n) {
-      const Eigen::Vector3d d = map.points[near[n].second].cast<double>() - mean;
-      cov += d * d.transpose();
-    }
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-    const Eigen::Vector3d normal = eig.eigenvectors().col(0);  // smallest eigenvalue
-    residuals.push_back(std::abs(normal.dot(p.cast<double>() - mean)));
+  for (double r : residual) {
+    if (std::isnan(r)) ++out.skipped;
+    else residuals.push_back(r);
   }
   out.points = residuals.size();
   if (residuals.empty()) return out;

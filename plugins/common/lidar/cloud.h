@@ -37,7 +37,8 @@ struct PlaneResidualStats {
   size_t skipped = 0;     // points with fewer than k neighbours within radius
   double mean = 0, median = 0, rmse = 0, p90 = 0;  // m
 };
-PlaneResidualStats MapPlaneResidual(const Cloud& map, int k = 10, double radius = 0.5);
+// `threads`: the same figures at any count.
+PlaneResidualStats MapPlaneResidual(const Cloud& map, int k = 10, double radius = 0.5, int threads = 1);
 
 }  // namespace locforge::lidar
 

@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <random>
+#include <tuple>
 
 namespace locforge::lidar {
 namespace {
@@ -41,6 +43,58 @@ TEST(MapPlaneResidual, ExactPlaneIsZeroNoisyPlaneIsItsNoiseDoubledWallIsHalfTheG
   const PlaneResidualStats none = MapPlaneResidual(sparse, 10, 0.5);
   EXPECT_EQ(none.points, 0u);
   EXPECT_EQ(none.skipped, 2u);
+}
+
+TEST(MapPlaneResidual, SameFiguresAtAnyThreadCount) {
+  Cloud c = Plane(1, 0.01, 2);
+  const Cloud wall = Plane(2, 0.02, 3, 0.01);
+  c.points.insert(c.points.end(), wall.points.begin(), wall.points.end());
+  c.points.emplace_back(40, 40, 40);  // skipped
+  const PlaneResidualStats one = MapPlaneResidual(c, 10, 0.5, 1);
+  for (int threads : {2, 3}) {
+    const PlaneResidualStats many = MapPlaneResidual(c, 10, 0.5, threads);
+    EXPECT_EQ(many.points, one.points);
+    EXPECT_EQ(many.skipped, 1u);
+    EXPECT_EQ(many.mean, one.mean);
+    EXPECT_EQ(many.median, one.median);
+    EXPECT_EQ(many.rmse, one.rmse);
+    EXPECT_EQ(many.p90, one.p90);
+  }
+}
+
+// The voxel grid against its definition, written out with an ordered map:
+// one centroid per occupied cell, cells in (x, y, z) order, negative
+// coordinates included, and cells beyond the packed-key range (+-2^20 cells).
+TEST(VoxelDownsample, CentroidPerCellInCellOrder) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-3, 3);
+  Cloud c;
+  for (int i = 0; i < 20000; ++i) c.points.emplace_back(u(rng), u(rng), u(rng) * 0.3f);
+  auto reference = [](const Cloud& cloud, double voxel) {
+    std::map<std::tuple<int, int, int>, std::pair<Eigen::Vector3d, int>> cells;
+    for (const auto& p : cloud.points) {
+      auto& [sum, n] = cells[{static_cast<int>(std::floor(p.x() / voxel)), static_cast<int>(std::floor(p.y() / voxel)),
+                              static_cast<int>(std::floor(p.z() / voxel))}];
+      if (n == 0) sum.setZero();
+      sum += p.cast<double>();
+      ++n;
+    }
+    std::vector<Eigen::Vector3f> out;
+    for (const auto& [key, acc] : cells) out.push_back((acc.first / acc.second).cast<float>());
+    return out;
+  };
+  for (double voxel : {0.1, 0.37, 1.0}) {
+    const Cloud down = VoxelDownsample(c, voxel);
+    const std::vector<Eigen::Vector3f> want = reference(c, voxel);
+    ASSERT_EQ(down.points.size(), want.size()) << voxel;
+    for (size_t i = 0; i < want.size(); ++i) EXPECT_LT((down.points[i] - want[i]).norm(), 1e-5f) << voxel << " " << i;
+  }
+  Cloud far = c;
+  far.points.emplace_back(2e5f, -2e5f, 1.0f);  // 2e6 cells at 0.1 m: beyond the packed key
+  const Cloud down = VoxelDownsample(far, 0.1);
+  const std::vector<Eigen::Vector3f> want = reference(far, 0.1);
+  ASSERT_EQ(down.points.size(), want.size());
+  for (size_t i = 0; i < want.size(); ++i) EXPECT_LT((down.points[i] - want[i]).norm(), 1e-5f) << i;
 }
 
 }  // namespace

@@ -100,6 +100,7 @@ class Slam {
   // The part of `sequence` (its first keyframe's id) and of the first sequence.
   int ComponentOf(const std::string& sequence) const { return component_.at(sequence); }
   int AnchorComponent() const;
+  int threads() const { return threads_; }
 
   const std::vector<Keyframe>& keyframes() const { return keyframes_; }
   const PoseGraph& graph() const { return graph_; }

@@ -164,7 +164,7 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
   }
   std::set<std::string> sequences;
   for (const auto& kf : keyframes) sequences.insert(kf.sequence);
-  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius_m);
+  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius_m, slam.threads());
   std::ostringstream loops_json;
   loops_json.precision(16);
   for (const auto& e : graph.edges) {
