@@ -36,7 +36,7 @@ class PoseGraphSlam : public Stage<PoseGraphStageOptions> {
                    {{"trajectories", "kapture.trajectories",
                      "sensors/trajectories.txt: rig at every scan, cameras at every image (the first sequence's "
                      "part); map.pcd/ply, pose_graph.g2o, trajectories.svg/png, joins.csv, slam.json"}}};
-    meta.version = "0.8.0";
+    meta.version = "0.9.0";
     return meta;
   }
   using Stage::Stage;
@@ -109,6 +109,13 @@ void PoseGraphStageOptions::Declare(ParamSchema<PoseGraphStageOptions>& s) {
   s.Add("join_rival_conflict_margin", &O::slam, &SlamOptions::join_rival_conflict_margin, "... plus this fraction ...").Range(0, 1);
   s.Add("join_rival_overlap", &O::slam, &SlamOptions::join_rival_overlap,
         "... over at least this fraction of the winner's overlap makes the join ambiguous (refused)").Range(0, 1);
+  s.Add("join_trials", &O::slam, &SlamOptions::join_trials,
+        "When no frame explains the overlap as the parts stand, at most this many close frames are joined on trial, "
+        "optimised and judged again by join_max_conflict; one that holds, and no other, is joined (0: no trials)")
+      .Range(0, 100);
+  s.Add("join_trial_max_conflict", &O::slam, &SlamOptions::join_trial_max_conflict,
+        "... those with at most this conflict as the parts stand (with repeated structure, only frames keeping the "
+        "starts within join_max_start_offset_m)").Range(0, 1);
   s.Add("join_free_space_margin_m", &O::slam, &SlamOptions::join_free_space_margin_m,
         "Structure within this distance of the other map's returns agrees with it (m)").Range(0, 10);
   s.Add("unjoined", &O::slam, &SlamOptions::unjoined,

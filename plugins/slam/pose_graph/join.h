@@ -23,6 +23,10 @@ struct JoinHypothesis {
   JoinEvidence evidence;     // of the whole overlap under T_A_B
   // Farthest start of a sequence of B from every start of A, under T_A_B (m).
   double start_offset_m = 0;
+  // Trial (TrialCandidates): the overlap once B was joined by this frame
+  // with its loops and the graph optimised.
+  bool tried = false;
+  JoinEvidence after;
 };
 
 // Groups candidates into hypotheses: the best-overlapping unassigned
@@ -57,6 +61,14 @@ struct JoinDecisionOptions {
   double rival_conflict_ratio = 1.5;
   double rival_conflict_margin = 0.02;
   double rival_overlap = 0.5;
+  // Trials: when no frame explains the overlap as the parts stand (each
+  // part's drift, not yet corrected by the other's loops, puts far structure
+  // tenths of a metre off), up to max_trials frames with a conflict of at
+  // most trial_max_conflict are joined on trial, optimised, and judged again
+  // by max_conflict; with repeated structure among them, only those keeping
+  // the starts together are tried. One that holds, and no other, is joined.
+  int max_trials = 3;
+  double trial_max_conflict = 0.08;
   bool Check(std::string* why = nullptr) const;
 };
 
@@ -71,6 +83,16 @@ const char* ToString(JoinDecision::Status status);
 
 // The decision among hypotheses whose evidence is filled in.
 JoinDecision DecideJoin(const std::vector<JoinHypothesis>& hypotheses, const JoinDecisionOptions& options);
+
+// The hypotheses to try when DecideJoin found no frame that explains the
+// overlap (none when one does: DecideJoin has decided), best first.
+std::vector<int> TrialCandidates(const std::vector<JoinHypothesis>& hypotheses, const JoinDecisionOptions& options);
+
+// The decision once the candidates' `after` evidence is filled in (`tried`
+// set): joined when exactly one holds, ambiguous when several do, else
+// `before` (DecideJoin's refusal) with what the trials read.
+JoinDecision DecideAfterTrials(const std::vector<JoinHypothesis>& hypotheses, const JoinDecision& before,
+                               const JoinDecisionOptions& options);
 
 }  // namespace locforge::lidar
 

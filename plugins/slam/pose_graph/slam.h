@@ -77,6 +77,7 @@ struct SlamStats {
   int refinements = 0, refinements_rejected = 0;
   int64_t loop_tests = 0;
   int joins = 0, join_attempts = 0, join_tests = 0, join_rejected_loops = 0;
+  int join_trials = 0;  // frames joined on trial (join.h)
   PoseGraphSummary summary;
   StepTimes steps;  // keyframes, sequential edges, loops, joins, optimisation, join check
 };

@@ -268,18 +268,28 @@ bool Slam::TryJoin(int A, int B, int round) {
   jo.rival_conflict_ratio = o_.join_rival_conflict_ratio;
   jo.rival_conflict_margin = o_.join_rival_conflict_margin;
   jo.rival_overlap = o_.join_rival_overlap;
+  jo.max_trials = o_.join_trials;
+  jo.trial_max_conflict = o_.join_trial_max_conflict;
   JoinDecision d = DecideJoin(hypotheses, jo);
   at.candidates = static_cast<int>(candidates.size());
   at.hypotheses = static_cast<int>(hypotheses.size());
   if (d.winner >= 0) at.has_winner = true, at.winner = hypotheses[d.winner];
   if (d.rival >= 0) at.has_rival = true, at.rival = hypotheses[d.rival];
 
-  // The winner's loops made precise, then the loops it predicts along B.
-  std::vector<int> inliers;
-  Pose H;
-  if (d.status == JoinDecision::Status::kJoined) {
-    const JoinCandidate rep = candidates[hypotheses[d.winner].loops.front()];
-    for (int i : hypotheses[d.winner].loops) {
+  // A frame's loops made precise, then the loops it predicts along B; the
+  // precise loops agreeing with it, and the frame of the best-overlapping one.
+  struct Plan {
+    std::vector<int> inliers;
+    Pose H;
+    int predicted_tested = 0, predicted_found = 0;
+    std::string failure;  // empty: its loops hold
+  };
+  std::map<int, Plan> plans;  // by hypothesis
+  auto plan = [&](int w) -> const Plan& {
+    if (plans.count(w)) return plans.at(w);
+    Plan p;
+    const JoinCandidate rep = candidates[hypotheses[w].loops.front()];
+    for (int i : hypotheses[w].loops) {
       hooks_.check_cancelled();
       RegistrationResult precise;
       if (!FineCheck(registrar_, MakeRefiner(), keyframes_[candidates[i].a], keyframes_[candidates[i].b], results[i],
@@ -289,43 +299,95 @@ bool Slam::TryJoin(int A, int B, int round) {
       const Keyframe& b = keyframes_[candidates[i].b];
       add(a, b, precise, false, true);
     }
-    H = rep.T_A_B;
+    p.H = rep.T_A_B;
     std::vector<std::pair<const Keyframe*, const Keyframe*>> predicted;
     for (const Keyframe* b : kb) {
-      const Keyframe* a = nearest_a(H * graph_.nodes.at(b->id).t);
+      const Keyframe* a = nearest_a(p.H * graph_.nodes.at(b->id).t);
       if (a && !tested.count({a->id, b->id})) predicted.emplace_back(a, b);
     }
     const size_t n = std::min<size_t>(predicted.size(), o_.join_verify);
+    std::vector<int> mine;  // candidates this frame's verification found
     for (size_t k = 0; k < n; ++k) {
       hooks_.check_cancelled();
       const auto [a, b] = predicted[k * predicted.size() / n];
       tested.insert({a->id, b->id});
       ++stats_.join_tests;
-      for (const auto& r : CheckLoop(*a, *b, {graph_.nodes.at(a->id).Inverse() * H * graph_.nodes.at(b->id)},
+      for (const auto& r : CheckLoop(*a, *b, {graph_.nodes.at(a->id).Inverse() * p.H * graph_.nodes.at(b->id)},
                                      o_.loop_rough_error))
         add(*a, *b, r, true, true);
     }
-    // The precise loops agreeing with the winner; the frame applied is that
-    // of the best-overlapping one.
     std::set<int> support, verified;
     int best = -1;
     for (int i = 0; i < static_cast<int>(candidates.size()); ++i)
       if (fine[i] && HypothesesAgree(rep, candidates[i], agreement)) {
-        inliers.push_back(i);
+        p.inliers.push_back(i);
         support.insert(candidates[i].b);
         if (candidates[i].predicted) verified.insert(candidates[i].b);
         if (best < 0 || candidates[i].overlap > candidates[best].overlap) best = i;
       }
-    if (best >= 0) H = candidates[best].T_A_B;
-    at.predicted_tested = static_cast<int>(n);
-    at.predicted_found = static_cast<int>(verified.size());
+    if (best >= 0) p.H = candidates[best].T_A_B;
+    p.predicted_tested = static_cast<int>(n);
+    p.predicted_found = static_cast<int>(verified.size());
     if (static_cast<int>(support.size()) < o_.join_min_support ||
-        static_cast<int>(verified.size()) < o_.join_min_verified) {
-      d.status = JoinDecision::Status::kNoEvidence;
-      d.reason = "the frame explains the overlap but its loops do not hold: " + std::to_string(support.size()) +
-                 " keyframes agree, " + std::to_string(verified.size()) + " of " + std::to_string(n) +
-                 " predicted loops found";
+        static_cast<int>(verified.size()) < o_.join_min_verified)
+      p.failure = "the frame explains the overlap but its loops do not hold: " + std::to_string(support.size()) +
+                  " keyframes agree, " + std::to_string(verified.size()) + " of " + std::to_string(n) +
+                  " predicted loops found";
+    return plans.emplace(w, std::move(p)).first->second;
+  };
+  // B into A's frame by a plan (and its pre-optimisation copy, for the plot).
+  auto apply = [&](const Plan& p) {
+    for (const Keyframe* b : kb) {
+      graph_.nodes[b->id] = p.H * graph_.nodes.at(b->id);
+      before_.nodes[b->id] = p.H * before_.nodes.at(b->id);
     }
+    for (int i : p.inliers) {
+      const Keyframe& a = keyframes_[candidates[i].a];
+      const Keyframe& b = keyframes_[candidates[i].b];
+      if (!accepted_.count({std::min(a.id, b.id), std::max(a.id, b.id)})) AddLoopEdge(a, b, results[i]);
+    }
+    for (auto& [seq, c] : component_)
+      if (c == B) c = A;
+    ++poses_version_;
+  };
+
+  // Trials: no frame explains the overlap as the parts stand; the close ones
+  // are joined on a copy of the state, optimised, and judged again.
+  if (d.status != JoinDecision::Status::kJoined) {
+    const std::vector<int> trials = TrialCandidates(hypotheses, jo);
+    for (int w : trials) {
+      const Plan& p = plan(w);
+      if (!p.failure.empty()) continue;
+      const PoseGraph graph = graph_, before = before_;
+      const std::set<std::pair<int, int>> accepted = accepted_;
+      const std::map<std::string, int> component = component_;
+      const int version = poses_version_;
+      const PoseGraphSummary summary = stats_.summary;
+      apply(p);
+      Optimize();
+      hypotheses[w].tried = true;
+      hypotheses[w].after = EvaluateJoin(MakeFloor(ka), MakeFloor(kb), Pose());
+      graph_ = graph, before_ = before, accepted_ = accepted, component_ = component;
+      poses_version_ = version, stats_.summary = summary;
+      ++stats_.join_trials;
+    }
+    d = DecideAfterTrials(hypotheses, d, jo);
+    if (d.winner >= 0) at.has_winner = true, at.winner = hypotheses[d.winner];
+    at.has_rival = d.rival >= 0;
+    if (d.rival >= 0) at.rival = hypotheses[d.rival];
+  }
+  Pose H;
+  std::vector<int> inliers;
+  if (d.status == JoinDecision::Status::kJoined) {
+    const Plan& p = plan(d.winner);
+    at.predicted_tested = p.predicted_tested;
+    at.predicted_found = p.predicted_found;
+    if (!p.failure.empty()) {
+      d.status = JoinDecision::Status::kNoEvidence;
+      d.reason = p.failure;
+    }
+    H = p.H;
+    inliers = p.inliers;
   }
   at.status = d.status;
   at.reason = d.reason;
@@ -339,9 +401,12 @@ bool Slam::TryJoin(int A, int B, int round) {
     log << "; rival: conflict " << Percent(at.rival.evidence.Conflict()) << ", " << at.rival.evidence.Agreeing()
         << " cells";
   log << "; frames (conflict, agreeing, support; x m, y m, yaw deg of b's frame in a's; farthest start of b from a's):";
-  for (const auto& h : hypotheses)
+  for (const auto& h : hypotheses) {
     log << " (" << Percent(h.evidence.Conflict()) << ", " << h.evidence.Agreeing() << ", " << h.support << "; "
-        << FrameXYYaw(h.T_A_B) << "; start " << std::setprecision(3) << h.start_offset_m << " m)";
+        << FrameXYYaw(h.T_A_B) << "; start " << std::setprecision(3) << h.start_offset_m << " m";
+    if (h.tried) log << "; on trial: " << Percent(h.after.Conflict()) << ", " << h.after.Agreeing();
+    log << ")";
+  }
   at.frames = hypotheses;
   if (at.predicted_tested > 0) log << "; predicted loops " << at.predicted_found << " of " << at.predicted_tested;
   log << ": " << (d.status == JoinDecision::Status::kJoined ? "joined" : "refused, " + d.reason);
@@ -351,22 +416,13 @@ bool Slam::TryJoin(int A, int B, int round) {
     attempts_.push_back(at);
     return false;
   }
-  // B into A's frame (and its pre-optimisation copy, for the plot).
   at.T_A_B = H;
-  for (const Keyframe* b : kb) {
-    graph_.nodes[b->id] = at.T_A_B * graph_.nodes.at(b->id);
-    before_.nodes[b->id] = at.T_A_B * before_.nodes.at(b->id);
-  }
-  for (int i : inliers) {
-    const Keyframe& a = keyframes_[candidates[i].a];
-    const Keyframe& b = keyframes_[candidates[i].b];
-    if (!accepted_.count({std::min(a.id, b.id), std::max(a.id, b.id)})) AddLoopEdge(a, b, results[i]);
-  }
+  Plan applied;
+  applied.H = H;
+  applied.inliers = inliers;
+  apply(applied);
   stats_.join_rejected_loops += static_cast<int>(std::count(fine.begin(), fine.end(), 1) - inliers.size());
-  for (auto& [seq, c] : component_)
-    if (c == B) c = A;
   ++stats_.joins;
-  ++poses_version_;
   attempts_.push_back(at);
   return true;
 }

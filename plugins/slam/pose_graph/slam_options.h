@@ -72,6 +72,11 @@ struct SlamOptions {
   double join_rival_conflict_ratio = 1.5;   // a distinct frame with a conflict below ratio x the winner's ...
   double join_rival_conflict_margin = 0.02; // ... + margin ...
   double join_rival_overlap = 0.5;          // ... and this fraction of its overlap makes the join ambiguous
+  // No frame explains the overlap as the parts stand: up to join_trials
+  // frames within join_trial_max_conflict are joined on trial, optimised and
+  // judged again; one that holds and no other is joined (join.h).
+  int join_trials = 3;
+  double join_trial_max_conflict = 0.08;
   double join_free_space_margin_m = 0.3;    // structure this close to the other map's returns agrees
   // A part that cannot be joined: "error" stops the run with the evidence and
   // how to give initial_poses; "separate" keeps it out of the merged frame

@@ -190,7 +190,9 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
       joins_json << (i ? ", " : "") << "{\"x\": " << h.T_A_B.t.x() << ", \"y\": " << h.T_A_B.t.y()
                  << ", \"z\": " << h.T_A_B.t.z() << ", \"yaw_deg\": " << YawOf(h.T_A_B) * 180.0 / M_PI
                  << ", \"start_offset_m\": " << h.start_offset_m << ", \"support\": " << h.support
-                 << ", \"evidence\": " << EvidenceJson(h.evidence) << "}";
+                 << ", \"evidence\": " << EvidenceJson(h.evidence);
+      if (h.tried) joins_json << ", \"on_trial\": " << EvidenceJson(h.after);
+      joins_json << "}";
     }
     joins_json << "]}";
   }
@@ -211,7 +213,7 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
     << ",\n  \"loop_edges\": " << loop_edges << ",\n  \"cross_sequence_loop_edges\": " << cross
     << ",\n  \"loop_candidates_tested\": " << st.loop_tests << ",\n  \"joins\": " << st.joins
     << ",\n  \"join_attempts\": " << st.join_attempts << ",\n  \"join_candidates_tested\": " << st.join_tests
-    << ",\n  \"join_rejected_loops\": " << st.join_rejected_loops << ",\n  \"initial_cost\": " << st.summary.initial_cost
+    << ",\n  \"join_trials\": " << st.join_trials << ",\n  \"join_rejected_loops\": " << st.join_rejected_loops << ",\n  \"initial_cost\": " << st.summary.initial_cost
     << ",\n  \"final_cost\": " << st.summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
     << ",\n  \"information_fallbacks\": " << st.information_fallbacks << ",\n  \"refinements\": " << st.refinements
     << ",\n  \"refinements_rejected\": " << st.refinements_rejected << ",\n  \"map_points\": " << map.size()
