@@ -36,7 +36,7 @@ class PoseGraphSlam : public Stage<PoseGraphStageOptions> {
                    {{"trajectories", "kapture.trajectories",
                      "sensors/trajectories.txt: rig at every scan, cameras at every image (the first sequence's "
                      "part); map.pcd/ply, pose_graph.g2o, trajectories.svg/png, joins.csv, slam.json"}}};
-    meta.version = "0.9.0";
+    meta.version = "0.9.1";
     return meta;
   }
   using Stage::Stage;

@@ -50,11 +50,12 @@ struct JoinAttempt {
   std::string reason;
   int candidates = 0;               // loops found between them (seeds, places, predicted)
   int hypotheses = 0;               // distinct frames they suggested
-  bool has_winner = false, has_rival = false;
-  JoinHypothesis winner, rival;     // when present
+  int winner = -1, rival = -1;      // indices into frames (-1: none)
   int predicted_found = 0, predicted_tested = 0;
   Pose T_A_B;                       // the frame applied (joined)
   std::vector<JoinHypothesis> frames;  // every frame considered, with its evidence
+  // The evidence the decision used: after the trial for a frame tried, else as the parts stood.
+  static const JoinEvidence& Decisive(const JoinHypothesis& h) { return h.tried ? h.after : h.evidence; }
 };
 
 // Where every sequence ended up.

@@ -273,8 +273,6 @@ bool Slam::TryJoin(int A, int B, int round) {
   JoinDecision d = DecideJoin(hypotheses, jo);
   at.candidates = static_cast<int>(candidates.size());
   at.hypotheses = static_cast<int>(hypotheses.size());
-  if (d.winner >= 0) at.has_winner = true, at.winner = hypotheses[d.winner];
-  if (d.rival >= 0) at.has_rival = true, at.rival = hypotheses[d.rival];
 
   // A frame's loops made precise, then the loops it predicts along B; the
   // precise loops agreeing with it, and the frame of the best-overlapping one.
@@ -372,9 +370,6 @@ bool Slam::TryJoin(int A, int B, int round) {
       ++stats_.join_trials;
     }
     d = DecideAfterTrials(hypotheses, d, jo);
-    if (d.winner >= 0) at.has_winner = true, at.winner = hypotheses[d.winner];
-    at.has_rival = d.rival >= 0;
-    if (d.rival >= 0) at.rival = hypotheses[d.rival];
   }
   Pose H;
   std::vector<int> inliers;
@@ -394,11 +389,15 @@ bool Slam::TryJoin(int A, int B, int round) {
   std::ostringstream log;
   log << "pose_graph: join " << at.b << " to " << at.a << ": " << seeds << " seeds, " << places << " places, "
       << candidates.size() << " loops, " << hypotheses.size() << " frames";
-  if (at.has_winner)
-    log << "; best: conflict " << Percent(at.winner.evidence.Conflict()) << ", " << at.winner.evidence.Agreeing()
+  at.winner = d.winner;
+  at.rival = d.rival;
+  if (at.winner >= 0)
+    log << "; best: conflict " << Percent(JoinAttempt::Decisive(hypotheses[at.winner]).Conflict()) << ", "
+        << JoinAttempt::Decisive(hypotheses[at.winner]).Agreeing()
         << " cells agree";
-  if (at.has_rival)
-    log << "; rival: conflict " << Percent(at.rival.evidence.Conflict()) << ", " << at.rival.evidence.Agreeing()
+  if (at.rival >= 0)
+    log << "; rival: conflict " << Percent(JoinAttempt::Decisive(hypotheses[at.rival]).Conflict()) << ", "
+        << JoinAttempt::Decisive(hypotheses[at.rival]).Agreeing()
         << " cells";
   log << "; frames (conflict, agreeing, support; x m, y m, yaw deg of b's frame in a's; farthest start of b from a's):";
   for (const auto& h : hypotheses) {

@@ -46,7 +46,8 @@ std::string JoinsCsv(const Slam& slam) {
   for (const auto& j : slam.sequence_joins())
     s << j.sequence << "," << j.status << "," << j.component << "," << j.round << "," << (j.consistent ? 1 : 0)
       << "," << Evidence(j.final_evidence) << "\n";
-  s << "# Attempts: part b to part a; the best frame and its closest distinct rival (when any).\n";
+  s << "# Attempts: part b to part a; the best frame and its closest distinct rival (when any), with the evidence "
+       "the decision used (once joined and optimised, for a frame tried on trial).\n";
   s << "# round,a,b,result,loops,frames,best_agreeing,best_conflict,best_b_in_a_agreeing,best_b_in_a_conflicting,"
        "best_a_in_b_agreeing,best_a_in_b_conflicting,rival_agreeing,rival_conflict,rival_b_in_a_agreeing,"
        "rival_b_in_a_conflicting,rival_a_in_b_agreeing,rival_a_in_b_conflicting,predicted_found,predicted_tested,"
@@ -54,8 +55,8 @@ std::string JoinsCsv(const Slam& slam) {
   const JoinEvidence none;
   for (const auto& at : slam.join_attempts())
     s << "# " << at.round << "," << at.a << "," << at.b << "," << ToString(at.status) << "," << at.candidates << ","
-      << at.hypotheses << "," << Evidence(at.has_winner ? at.winner.evidence : none) << ","
-      << Evidence(at.has_rival ? at.rival.evidence : none) << "," << at.predicted_found << ","
+      << at.hypotheses << "," << Evidence(at.winner >= 0 ? JoinAttempt::Decisive(at.frames[at.winner]) : none) << ","
+      << Evidence(at.rival >= 0 ? JoinAttempt::Decisive(at.frames[at.rival]) : none) << "," << at.predicted_found << ","
       << at.predicted_tested << "," << Quoted(at.reason) << "\n";
   return s.str();
 }
@@ -181,8 +182,8 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
     joins_json << (joins_json.tellp() > 0 ? ",\n    " : "\n    ") << "{\"round\": " << at.round << ", \"a\": \""
                << at.a << "\", \"b\": \"" << at.b << "\", \"result\": \"" << ToString(at.status)
                << "\", \"loops\": " << at.candidates << ", \"frames\": " << at.hypotheses;
-    if (at.has_winner) joins_json << ", \"best\": " << EvidenceJson(at.winner.evidence);
-    if (at.has_rival) joins_json << ", \"rival\": " << EvidenceJson(at.rival.evidence);
+    if (at.winner >= 0) joins_json << ", \"best\": " << EvidenceJson(JoinAttempt::Decisive(at.frames[at.winner]));
+    if (at.rival >= 0) joins_json << ", \"rival\": " << EvidenceJson(JoinAttempt::Decisive(at.frames[at.rival]));
     joins_json << ", \"predicted_found\": " << at.predicted_found << ", \"predicted_tested\": " << at.predicted_tested
                << ", \"frames\": [";
     for (size_t i = 0; i < at.frames.size(); ++i) {
