@@ -276,7 +276,10 @@ std::string ReportBuilder::Summary() {
         std::string big;
         for (size_t col = 0; col < c.header.size(); ++col) {
           const std::string& h = c.header[col];
-          if (h.rfind("(", 0) != 0) continue;  // recall columns are named "(0.1m, 1deg)" or alike
+          // Recall columns: "0.1m,1deg" (eval/localization), also "(0.1m, 1deg)".
+          const bool recall = h.find("m,") != std::string::npos && h.size() > 3 &&
+                              h.compare(h.size() - 3, 3, "deg") == 0;
+          if (!recall) continue;
           const std::string value = c.rows[r][col];
           if (big.empty()) big = Escape(value) + " %";
           lines.push_back(Escape(h + ": " + value + " %"));
@@ -347,9 +350,15 @@ std::string ReportBuilder::GroundTruth() {
         if (joins.Cell(r, "status") == "separate")
           Warn("the LiDAR half refused to join sequence " + joins.Cell(r, "sequence") + " (" + Source(*n, "joins.csv") +
                ")");
-      // Attempts are comment lines under "# round,a,b,result,...".
+      // Attempts are the comment lines after the "# round,a,b,result,..." header
+      // (the comments before it describe the columns, commas included).
+      bool attempts = false;
       for (const auto& c : joins.comments) {
-        if (c.rfind("# ", 0) != 0 || c.find(',') == std::string::npos || c.rfind("# round,", 0) == 0) continue;
+        if (c.rfind("# round,", 0) == 0) {
+          attempts = true;
+          continue;
+        }
+        if (!attempts || c.rfind("# ", 0) != 0 || c.find(',') == std::string::npos) continue;
         std::istringstream fields(c.substr(2));
         std::string round, a, b, result;
         std::getline(fields, round, ','), std::getline(fields, a, ','), std::getline(fields, b, ','),

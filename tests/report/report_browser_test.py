@@ -17,6 +17,7 @@ import base64
 import csv
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -159,6 +160,21 @@ def check(args):
                                             (t["source"], r, header[c], text, row[c]))
                     elif a is None or abs(a - b) > 1e-3 * max(abs(b), 1e-12):
                         failures.append("%s row %d column %s: shows %r for %r" % (t["source"], r, header[c], text, row[c]))
+        # Summary cards: each shows a figure (a card shows "-" when it could not
+        # read its node's numbers, e.g. a renamed column).
+        cards = driver.script("""
+          return Array.from(document.querySelectorAll('.card')).map(c =>
+            [c.querySelector('h3').textContent, c.querySelector('.big').textContent])""")
+        for title, big in cards:
+            if not re.match(r"\s*[-+]?[0-9]", big):
+                failures.append("card '%s' shows %r, not a figure" % (title, big))
+        # Warnings: sentences about the run, never a CSV file's comment lines.
+        warnings = driver.script(
+            "return Array.from(document.querySelectorAll('#warnings li')).map(li => li.textContent)")
+        for w in warnings:
+            if "status:" in w or "final_*" in w:
+                failures.append("warning made of a file's column description: " + w)
+        print("report: %d cards, %d warnings" % (len(cards), len(warnings)))
         print("report: %d images, %d tables (%d cells) checked, %d console entries" %
               (len(images), len(tables), cells, len(logs)))
         for expected in args.expect_table:
