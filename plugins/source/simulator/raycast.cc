@@ -8,20 +8,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// Slab test; returns the entry distance or +inf when missed.
-double BoxEntry(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const Eigen::Vector3d& o,
-                const Eigen::Vector3d& inv_d, double t_max) {
-  double t0 = 0, t1 = t_max;
-  for (int a = 0; a < 3; ++a) {
-    double ta = (lo[a] - o[a]) * inv_d[a], tb = (hi[a] - o[a]) * inv_d[a];
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-    if (t0 > t1) return std::numeric_limits<double>::infinity();
-  }
-  return t0;
-}
-
 std::vector<Quad> QuadsOfDay(const Scene& scene, int day) {
   std::vector<Quad> out;
   for (const Quad& q : scene.quads)

@@ -17,19 +17,6 @@ constexpr int kLeafSize = 2;     // a leaf of at most this many quads is never s
 constexpr int kMaxLeafSize = 8;  // split larger ones even when the heuristic says not to
 constexpr double kTraversalCost = 1.0;  // relative to one ray-quad test
 
-// Entry distance of the ray into [lo, hi] when it is entered before t_max, else +inf.
-inline double BoxEntry(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const Eigen::Vector3d& o,
-                       const Eigen::Vector3d& inv_d, double t_max) {
-  double t0 = 0, t1 = t_max;
-  for (int a = 0; a < 3; ++a) {
-    double ta = (lo[a] - o[a]) * inv_d[a], tb = (hi[a] - o[a]) * inv_d[a];
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-  }
-  return t0 <= t1 ? t0 : kInf;
-}
-
 }  // namespace
 
 double SahBvh::Box::Area() const {

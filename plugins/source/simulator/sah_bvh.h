@@ -10,12 +10,29 @@
 #define LOCFORGE_SIM_SAH_BVH_H_
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <limits>
 #include <vector>
 
 #include "scene.h"
 
 namespace locforge::sim {
+
+// Slab test of the ray o + t d (inv_d = 1 / d per axis) against the box
+// [lo, hi]: the entry distance when the box is entered before t_max, else +inf.
+// The BVHs of raycast.h and of this file both traverse with it.
+inline double BoxEntry(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const Eigen::Vector3d& o,
+                       const Eigen::Vector3d& inv_d, double t_max) {
+  double t0 = 0, t1 = t_max;
+  for (int a = 0; a < 3; ++a) {
+    double ta = (lo[a] - o[a]) * inv_d[a], tb = (hi[a] - o[a]) * inv_d[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (t0 > t1) return std::numeric_limits<double>::infinity();
+  }
+  return t0;
+}
 
 struct NearestQuadSearch;  // raycast.h
 
