@@ -3,7 +3,7 @@
 the rig and camera poses of the LiDAR half (joins/summary.json: one rigid alignment of the whole
 recording on the rig poses) and the camera poses before and after the SfM half (cameras/calibration.csv:
 one SE(3) alignment of all camera poses of the recording per estimate), with the bundle adjustment's
-camera rotations (extrinsics) and focal errors. Usage: camera_sweep_table.py WORKSPACE"""
+camera rotations (extrinsics), focal errors and the gt node's wall seconds. Usage: camera_sweep_table.py WORKSPACE"""
 import csv, glob, json, os, sys
 
 
@@ -13,9 +13,11 @@ def rows_of(path):
 
 
 def main():
+    if len(sys.argv) != 2:
+        sys.exit(__doc__)
     w = sys.argv[1]
     print("| seed | images | rig: ATE (cm) / rotation (deg) | LiDAR half cameras (cm / deg) | "
-          "SfM half cameras (cm / deg) | camera rotations (extrinsics) RMS / max (deg) | focal RMS (%) | BA s |")
+          "SfM half cameras (cm / deg) | camera rotations (extrinsics) RMS / max (deg) | focal RMS (%) | gt node s |")
     print("|---|---|---|---|---|---|---|---|")
     for v in sorted(glob.glob(os.path.join(w, "variants", "seed=*")), key=lambda p: int(p.split("=")[-1])):
         summary = os.path.join(v, "nodes", "joins", "summary.json")
@@ -24,9 +26,11 @@ def main():
             continue  # not run (yet)
         s = json.load(open(summary))
         c = rows_of(calibration)
+        if "lidar_half" not in c or "spline_ba" not in c:
+            sys.exit("%s: no 'lidar_half' and 'spline_ba' rows (eval/calibration labels of camera_sweep.yaml)" % calibration)
         lidar, ba = c["lidar_half"], c["spline_ba"]
         seconds = "-"
-        manifest = os.path.join(v, "nodes", "gt", ".locforge-complete")  # the node's cost fields
+        manifest = os.path.join(v, "nodes", "gt", ".locforge-complete")  # its wall time: triangulation + BA
         if os.path.exists(manifest):
             seconds = "%.0f" % json.load(open(manifest)).get("seconds", float("nan"))
         print("| %s | %s | %.2f / %.3f | %s / %s | %s / %s | %s / %s | %s | %s |" % (
