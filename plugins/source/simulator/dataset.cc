@@ -276,6 +276,13 @@ void WriteMask(const fs::path& path, const RenderedImage& img) {
   WriteDataFile(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
+// kapture's depth map file: width x height float32, row-major, little endian
+// (the sizes are the camera's), z in metres, 0 where no surface.
+void WriteDepth(const fs::path& path, const RenderedImage& img) {
+  static_assert(sizeof(float) == 4);
+  WriteDataFile(path, std::string_view(reinterpret_cast<const char*>(img.depth.data()), img.depth.size() * sizeof(float)));
+}
+
 std::string PoseYaml(const Pose& p) {
   const Eigen::Quaterniond q = p.q.normalized();
   return "{qw: " + FormatNumber(q.w()) + ", qx: " + FormatNumber(q.x()) + ", qy: " + FormatNumber(q.y()) +
@@ -438,6 +445,7 @@ DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int thr
       const std::string stem = plan.name + "/" + cam.id + "/" + std::to_string(ts);
       WriteImage(data / (stem + "." + o.image_format), img, o.image_format);
       if (o.masks) WriteMask(truth / "masks" / plan.split / (stem + ".png"), img);
+      if (o.depth) WriteDepth(truth / "depth" / plan.split / (stem + ".depth"), img);
       person_fraction[i] = img.PersonFraction();
       {
         std::lock_guard<std::mutex> lock(rows_mutex);

@@ -32,6 +32,7 @@ struct SimOptions {
   bool lidar = true;                // write LiDAR scans
   bool cameras = true;              // render and write camera images (false: LiDAR + wheels only)
   bool masks = true;                // write person masks
+  bool depth = false;               // write the exact depth maps (kapture .depth: float32 z, 0 = none)
   std::string image_format = "jpg"; // jpg | png
   std::string layout = "splits";    // splits: mapping kapture at the root, queries in validation/, test/; single: one kapture
   int texture_size = 512;           // texels per texture side

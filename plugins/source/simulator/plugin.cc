@@ -22,6 +22,7 @@ struct SimulatorOptions {
   bool lidar = true;
   bool cameras = true;
   bool masks = true;
+  bool depth = false;
 
   static void Declare(ParamSchema<SimulatorOptions>& s) {
     s.Add("preset", &SimulatorOptions::preset, "Recording size: tiny (tests), small (demo), large (benchmark)")
@@ -49,6 +50,8 @@ struct SimulatorOptions {
     s.Add("cameras", &SimulatorOptions::cameras,
           "Render and write the camera images (false: LiDAR and wheel records only, e.g. for LiDAR sweeps)");
     s.Add("masks", &SimulatorOptions::masks, "Write the true per-pixel person masks");
+    s.Add("depth", &SimulatorOptions::depth,
+          "Write the true depth maps: truth/depth/<split>/<seq>/<camera>/<timestamp>.depth (float32 z in m, 0: none)");
   }
 
   SimOptions ToSimOptions() const {
@@ -67,6 +70,7 @@ struct SimulatorOptions {
     o.lidar = lidar;
     o.cameras = cameras;
     o.masks = masks;
+    o.depth = depth;
     return o;
   }
 

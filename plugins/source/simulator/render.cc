@@ -67,6 +67,7 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
     out->height = h;
     out->rgb.assign(size_t(w) * h * 3, 0);
     out->person_mask.assign(size_t(w) * h, 0);
+    out->depth.assign(size_t(w) * h, 0.f);
   }
   if (row_end < 0 || row_end > h) row_end = h;
   const std::vector<Cylinder> visible = VisiblePeople(people, camera, T_world_camera);
@@ -136,6 +137,7 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
         out->rgb[i * 3 + c] = static_cast<uint8_t>(std::clamp(v + 0.5f, 0.f, 255.f));
       }
       out->person_mask[i] = hit.person >= 0 ? 255 : 0;
+      out->depth[i] = hit.hit() ? static_cast<float>(hit.t * d.dot(R.col(2))) : 0.f;  // ray length -> z
     }
 }
 

@@ -1,7 +1,8 @@
 // The ray-casting renderer: one ray per pixel through the pixel centre, the
 // nearest surface (scene or person), its texture (bilinear, mip level from
 // the pixel footprint), simple shading, glossy highlights, then the session's
-// exposure/gain and sensor noise. Also gives the true per-pixel person mask.
+// exposure/gain and sensor noise. Also gives the true per-pixel person mask
+// and depth.
 #ifndef LOCFORGE_SIM_RENDER_H_
 #define LOCFORGE_SIM_RENDER_H_
 
@@ -27,6 +28,7 @@ struct RenderedImage {
   int width = 0, height = 0;
   std::vector<uint8_t> rgb;          // row-major, 3 bytes a pixel
   std::vector<uint8_t> person_mask;  // 255 where a person is the nearest surface
+  std::vector<float> depth;          // z of the nearest surface in the camera frame (m), 0: none
   double PersonFraction() const;
 };
 

@@ -113,6 +113,34 @@ TEST(Render, PersonMaskCoversThePersonOnly) {
   EXPECT_NEAR(img.PersonFraction(), expected, 0.25 * expected);
 }
 
+TEST(Render, DepthIsTheZOfTheNearestSurface) {
+  Person p;
+  p.path = {{4, -0.8}};
+  p.speed = 0;
+  p.height = 1.8;
+  MarkerRoom room(Crowd({p}));
+  const PinholeCamera cam = PinholeCamera::FromFov(200, 160, 79.4, 63);
+  const Pose T_world_camera = Pose(Eigen::Quaterniond::Identity(), {0, 0, 1.5}) * CameraMount(0, 0, {0, 0, 0});
+  RenderedImage img;
+  Render(*room.world, room.crowd.At(0), cam, T_world_camera, {}, &img);
+  ASSERT_EQ(img.depth.size(), size_t(img.width) * img.height);
+  // The pixel of the marker's centre: its depth back-projects onto the marker
+  // panel (x = 8, the panel faces -x), whatever the pixel's off-axis angle.
+  const Eigen::Vector2d m = cam.Project(T_world_camera.Inverse() * room.marker_center);
+  const int mi = int(m.y()) * img.width + int(m.x());
+  const Eigen::Vector3d ray = cam.Ray(int(m.x()) + 0.5, int(m.y()) + 0.5);
+  const Eigen::Vector3d X = T_world_camera * (ray / ray.z() * img.depth[mi]);
+  EXPECT_NEAR(X.x(), room.marker_center.x(), 0.02) << X.transpose();
+  EXPECT_LT((X - room.marker_center).norm(), 0.35);
+  // The person (a cylinder of radius 0.25 m at 4 m) is nearer than the wall behind.
+  const Eigen::Vector2d b = cam.Project(T_world_camera.Inverse() * Eigen::Vector3d(4, -0.8, 1.0));
+  const int bi = int(b.y()) * img.width + int(b.x());
+  ASSERT_EQ(img.person_mask[bi], 255);
+  const Eigen::Vector3d rb = cam.Ray(int(b.x()) + 0.5, int(b.y()) + 0.5);
+  const Eigen::Vector3d B = T_world_camera * (rb / rb.z() * img.depth[bi]);
+  EXPECT_NEAR(std::hypot(B.x() - 4, B.y() + 0.8), 0.25, 0.01) << B.transpose();  // on the cylinder
+}
+
 TEST(Render, DeterministicAndIndependentOfTheRowSplit) {
   MarkerRoom room;
   const PinholeCamera cam = PinholeCamera::FromFov(120, 90, 79.4, 63);

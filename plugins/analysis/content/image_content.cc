@@ -1,0 +1,189 @@
+#include "image_content.h"
+
+#include <opencv2/core.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+#include "locforge/error.h"
+
+namespace locforge::analysis {
+
+using evaluation::QueryError;
+using evaluation::Table;
+using evaluation::Threshold;
+
+bool LowFrequencyOptions::Check(std::string* why) const {
+  if (!(cutoff_cycles_per_width > 0) || !std::isfinite(cutoff_cycles_per_width)) {
+    *why = "cutoff_cycles_per_width must be > 0";
+    return false;
+  }
+  return true;
+}
+
+double LowFrequencyScore(const cv::Mat& gray, const LowFrequencyOptions& options) {
+  if (gray.empty() || gray.channels() != 1) throw std::invalid_argument("LowFrequencyScore: needs a one-channel image");
+  cv::Mat image;
+  gray.convertTo(image, CV_64F);
+  const int w = image.cols, h = image.rows;
+  cv::Mat spectrum;
+  cv::dft(image, spectrum, cv::DFT_COMPLEX_OUTPUT);
+  // I - lowpass(I) = highpass(I): zero the kept low frequencies (DC included)
+  // and transform back. Index k of an axis of n samples is frequency
+  // min(k, n - k) / n cycles per pixel; times w: cycles per image width.
+  const double r2 = options.cutoff_cycles_per_width * options.cutoff_cycles_per_width;
+  for (int v = 0; v < h; ++v) {
+    const double fy = static_cast<double>(std::min(v, h - v)) / h * w;
+    auto* row = spectrum.ptr<cv::Vec2d>(v);
+    for (int u = 0; u < w; ++u) {
+      const double fx = std::min(u, w - u);
+      if (fx * fx + fy * fy <= r2) row[u] = cv::Vec2d(0, 0);
+    }
+  }
+  cv::Mat high;
+  cv::idft(spectrum, high, cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
+  return cv::mean(cv::abs(high))[0];
+}
+
+double CrowdednessPercent(const cv::Mat& mask) {
+  if (mask.empty() || mask.channels() != 1 || mask.depth() != CV_8U)
+    throw std::invalid_argument("CrowdednessPercent: needs a one-channel 8-bit mask");
+  return 100.0 * cv::countNonZero(mask > 127) / static_cast<double>(mask.total());
+}
+
+namespace {
+
+// The recall cells of `errors` at every threshold, "a / b / c".
+std::string RecallCell(const std::vector<QueryError>& errors, const std::vector<Threshold>& thresholds) {
+  if (errors.empty()) return "-";
+  std::string cell;
+  for (size_t i = 0; i < thresholds.size(); ++i)
+    cell += (i ? " / " : "") + evaluation::Percent(evaluation::Recall(errors, thresholds[i]));
+  return cell;
+}
+
+// Splits each method's errors in two by a predicate on the query's content.
+template <class Predicate>
+Table SplitTable(const std::vector<MethodErrors>& methods, const std::vector<ImageContent>& content,
+                 const std::vector<Threshold>& thresholds, const std::string& yes, const std::string& no,
+                 Predicate in_subset) {
+  std::map<std::string, const ImageContent*> by_image;
+  for (const auto& c : content) by_image[c.image] = &c;
+  Table table;
+  size_t yes_count = 0, no_count = 0;
+  for (const auto& m : methods) {
+    std::vector<QueryError> a, b;
+    for (const auto& e : m.errors) {
+      const auto it = by_image.find(e.image);
+      if (it == by_image.end())
+        throw InputError("method '" + m.method + "': query " + e.image +
+                         " has no image-content row (were both computed on the same queries?)");
+      (in_subset(*it->second) ? a : b).push_back(e);
+    }
+    if (table.rows.empty()) yes_count = a.size(), no_count = b.size();
+    table.rows.push_back({m.method, RecallCell(a, thresholds), RecallCell(b, thresholds), RecallCell(m.errors, thresholds)});
+  }
+  table.header = {"method", yes + " (n=" + std::to_string(yes_count) + ")", no + " (n=" + std::to_string(no_count) + ")",
+                  "all"};
+  return table;
+}
+
+}  // namespace
+
+ImageContent Classify(std::string image, double low_frequency_score, double crowdedness_percent,
+                      const ContentThresholds& t) {
+  ImageContent c;
+  c.image = std::move(image);
+  c.low_frequency_score = low_frequency_score;
+  c.crowdedness_percent = crowdedness_percent;
+  c.low_frequency = low_frequency_score < t.low_frequency_below;
+  c.crowded = crowdedness_percent >= 0 && crowdedness_percent >= t.crowded_at_least;
+  return c;
+}
+
+Table LowFrequencyTable(const std::vector<MethodErrors>& methods, const std::vector<ImageContent>& content,
+                        const std::vector<Threshold>& thresholds) {
+  return SplitTable(methods, content, thresholds, "low-frequency", "other",
+                    [](const ImageContent& c) { return c.low_frequency; });
+}
+
+Table CrowdednessTable(const std::vector<MethodErrors>& methods, const std::vector<ImageContent>& content,
+                       const std::vector<Threshold>& thresholds) {
+  for (const auto& c : content)
+    if (c.crowdedness_percent < 0)
+      throw InputError("image " + c.image + " has no crowdedness (image_content ran without person masks)");
+  return SplitTable(methods, content, thresholds, "crowded", "other", [](const ImageContent& c) { return c.crowded; });
+}
+
+std::vector<ImageContent> ParseContent(const Table& content, const std::string& file) {
+  const std::vector<std::string> expected = {"image", "device_id", "low_frequency_score", "low_frequency",
+                                             "crowdedness_percent", "crowded"};
+  if (content.header != expected) throw InputError(file, 1, "header", "not an analysis/image_content content.csv");
+  std::vector<ImageContent> out;
+  for (size_t r = 0; r < content.rows.size(); ++r) {
+    const auto& row = content.rows[r];
+    const int64_t line = static_cast<int64_t>(r) + 2;
+    if (row.size() != expected.size()) throw InputError(file, line, "row", "expected 6 fields");
+    ImageContent c;
+    c.image = row[0];
+    try {
+      c.low_frequency_score = std::stod(row[2]);
+      c.crowdedness_percent = row[4].empty() ? -1 : std::stod(row[4]);
+    } catch (const std::exception&) {
+      throw InputError(file, line, "low_frequency_score/crowdedness_percent", "not numbers");
+    }
+    c.low_frequency = row[3] == "1";
+    c.crowded = row[5] == "1";
+    out.push_back(c);
+  }
+  return out;
+}
+
+std::vector<QueryError> ParsePerQuery(const Table& per_query, const std::string& file) {
+  const std::vector<std::string> expected = {"image", "device_id", "group", "split", "localized", "position_error_m",
+                                             "rotation_error_deg"};
+  if (per_query.header != expected)
+    throw InputError(file, 1, "header", "not an eval/localization per_query.csv (image,device_id,group,split,...)");
+  std::vector<QueryError> out;
+  for (size_t r = 0; r < per_query.rows.size(); ++r) {
+    const auto& row = per_query.rows[r];
+    const int64_t line = static_cast<int64_t>(r) + 2;
+    if (row.size() != expected.size()) throw InputError(file, line, "row", "expected 7 fields");
+    QueryError e;
+    e.image = row[0];
+    e.device = row[1];
+    e.group = row[2];
+    e.split = row[3];
+    if (row[4] != "0" && row[4] != "1") throw InputError(file, line, "localized", "expected 0 or 1, got '" + row[4] + "'");
+    e.localized = row[4] == "1";
+    if (e.localized) {
+      try {
+        size_t used = 0;
+        e.position_m = std::stod(row[5], &used);
+        if (used != row[5].size()) throw std::invalid_argument("trailing");
+        e.rotation_deg = std::stod(row[6], &used);
+        if (used != row[6].size()) throw std::invalid_argument("trailing");
+      } catch (const std::exception&) {
+        throw InputError(file, line, "position_error_m/rotation_error_deg", "not numbers: '" + row[5] + "', '" + row[6] + "'");
+      }
+    }
+    out.push_back(e);
+  }
+  return out;
+}
+
+std::vector<QueryError> RankedBestFirst(std::vector<QueryError> errors) {
+  std::sort(errors.begin(), errors.end(), [](const QueryError& a, const QueryError& b) {
+    if (a.localized != b.localized) return a.localized;
+    if (a.localized) {
+      if (a.position_m != b.position_m) return a.position_m < b.position_m;
+      if (a.rotation_deg != b.rotation_deg) return a.rotation_deg < b.rotation_deg;
+    }
+    return a.image < b.image;
+  });
+  return errors;
+}
+
+}  // namespace locforge::analysis

@@ -1,0 +1,136 @@
+// analysis/image_content: per query image, the paper's low-frequency score and
+// its crowdedness (% of person pixels of a mask), for Tables 5 and 6
+// (analysis/content_tables). Per image, so it shards like feature extraction.
+#include <opencv2/imgcodecs.hpp>
+
+#include <map>
+#include <sstream>
+
+#include "image_content.h"
+#include "locforge/fs.h"
+#include "locforge/kapture/kapture.h"
+#include "locforge/plugin.h"
+
+namespace locforge::analysis {
+
+namespace {
+
+namespace kp = locforge::kapture;
+
+struct ImageContentOptions {
+  double cutoff_cycles_per_width = LowFrequencyOptions{}.cutoff_cycles_per_width;  // Low-pass radius.
+  double low_frequency_below = ContentThresholds{}.low_frequency_below;  // Low-frequency image: score < this.
+  std::string masks;  // Person masks: <masks>/<image path, extension .png>, 255 on people; "": no crowdedness.
+  double crowded_at_least = ContentThresholds{}.crowded_at_least;  // Crowded image: % person pixels >= this.
+
+  static void Declare(ParamSchema<ImageContentOptions>& s) {
+    using O = ImageContentOptions;
+    s.Add("cutoff_cycles_per_width", &O::cutoff_cycles_per_width,
+          "low-pass radius (cycles per image width): the score is the mean |image - low-passed image| in grey levels")
+        .Min(1e-3);
+    s.Add("low_frequency_below", &O::low_frequency_below, "an image is low-frequency when its score is below this (paper: 20)");
+    s.Add("masks", &O::masks,
+          "folder of person masks, <masks>/<image path with extension .png>, 255 where a person is (e.g. a "
+          "simulator recording's truth/masks); empty: no crowdedness")
+        .Path();
+    s.Add("crowded_at_least", &O::crowded_at_least, "an image is crowded at this % of person pixels or more (paper: 20)")
+        .Range(0, 100);
+  }
+};
+
+fs::path ItemFile(const fs::path& out, const std::string& image) { return out / "items" / (image + ".txt"); }
+
+class ImageContentStage : public PerItemStage<ImageContentOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta = {"analysis", "image_content",
+                      "Per image: low-frequency score (mean |I - lowpass(I)|, Fourier domain) and crowdedness "
+                      "(% person pixels of a mask), the inputs of the paper's Tables 5 and 6",
+                      {{"images", "kapture.dataset", "the query images"}},
+                      {{"content", "report", "content.csv (image, device_id, low_frequency_score, low_frequency, "
+                                             "crowdedness_percent, crowded), content.md"}}};
+    meta.version = "1.0.0";
+    return meta;
+  }
+  using PerItemStage::PerItemStage;
+
+  std::vector<std::string> ListItems(RunContext& ctx) override { return kp::Kapture(ctx.Input("images")).CameraImages(); }
+
+  void ProcessItem(RunContext& ctx, const std::string& image) override {
+    const kp::Kapture dataset(ctx.Input("images"));
+    const fs::path file = dataset.ExistingRecordDataPath(image, "sensors/records_camera.txt");
+    const cv::Mat gray = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
+    if (gray.empty()) throw InputError(file.string(), 0, "image", "cannot be decoded as an image");
+    LowFrequencyOptions lf;
+    lf.cutoff_cycles_per_width = options().cutoff_cycles_per_width;
+    std::ostringstream line;
+    line.precision(17);
+    line << LowFrequencyScore(gray, lf) << ' ';
+    if (options().masks.empty()) {
+      line << -1;
+    } else {
+      const fs::path mask_file = fs::path(options().masks) / fs::path(image).replace_extension(".png");
+      if (!fs::exists(mask_file))
+        throw InputError(mask_file.string(), 0, "masks", "no person mask for image " + image);
+      const cv::Mat mask = cv::imread(mask_file.string(), cv::IMREAD_GRAYSCALE);
+      if (mask.empty()) throw InputError(mask_file.string(), 0, "masks", "cannot be decoded as an image");
+      if (mask.size() != gray.size())
+        throw InputError(mask_file.string(), 0, "masks", "mask size differs from the image's (" + image + ")");
+      line << CrowdednessPercent(mask);
+    }
+    line << '\n';
+    WriteFileAtomic(ItemFile(ctx.output_dir(), image), line.str());
+  }
+
+  void Finalize(RunContext& ctx) override {
+    const kp::Kapture dataset(ctx.Input("images"));
+    std::map<std::string, std::string> device;
+    for (const auto& r : dataset.ReadDataRecords(kp::kSensorCamera)) device[r.path] = r.device_id;
+    const auto& o = options();
+    evaluation::Table table;
+    table.header = {"image", "device_id", "low_frequency_score", "low_frequency", "crowdedness_percent", "crowded"};
+    size_t low = 0, crowded = 0, with_mask = 0;
+    std::vector<double> scores;
+    for (const std::string& image : dataset.CameraImages()) {
+      const fs::path item = ItemFile(ctx.output_dir(), image);
+      std::istringstream in(ReadFile(item));
+      double score = 0, crowd = 0;
+      if (!(in >> score >> crowd)) throw InputError(item.string(), 1, "item", "malformed (rerun with --force)");
+      const ImageContent c = Classify(image, score, crowd, {o.low_frequency_below, o.crowded_at_least});
+      const bool is_low = c.low_frequency, is_crowded = c.crowded;
+      low += is_low;
+      crowded += is_crowded;
+      with_mask += crowd >= 0;
+      scores.push_back(score);
+      table.rows.push_back({image, device[image], FormatDouble(score), is_low ? "1" : "0",
+                            crowd >= 0 ? FormatDouble(crowd) : "", crowd >= 0 ? (is_crowded ? "1" : "0") : ""});
+    }
+    std::sort(scores.begin(), scores.end());
+    auto quantile = [&](double q) {
+      const double v = scores.empty() ? 0.0 : scores[static_cast<size_t>(q * (scores.size() - 1) + 0.5)];
+      std::ostringstream s;
+      s.setf(std::ios::fixed);
+      s.precision(2);
+      s << v;
+      return s.str();
+    };
+    std::ostringstream md;
+    md << "# Image content\n\n" << table.rows.size() << " images; low-frequency score (mean |I - lowpass(I)|, "
+       << "low-pass radius " << FormatDouble(o.cutoff_cycles_per_width) << " cycles per image width): "
+       << "10th / 50th / 90th percentile " << quantile(0.1) << " / " << quantile(0.5) << " / " << quantile(0.9) << "; " << low << " low-frequency (< "
+       << FormatDouble(o.low_frequency_below) << ")";
+    if (with_mask)
+      md << "; " << crowded << " of " << with_mask << " crowded (>= " << FormatDouble(o.crowded_at_least)
+         << " % person pixels)";
+    md << ".\n";
+    WriteFileAtomic(ctx.output_dir() / "content.csv", evaluation::ToCsv(table));
+    WriteFileAtomic(ctx.output_dir() / "content.md", md.str());
+    ctx.Info(md.str());
+  }
+};
+
+}  // namespace
+
+LOCFORGE_EXPORT_STAGE(AddImageContent, ImageContentStage)
+
+}  // namespace locforge::analysis

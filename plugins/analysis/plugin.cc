@@ -1,0 +1,11 @@
+// The stages of kind analysis: what explains a method's failures.
+#include "locforge/plugin.h"
+
+namespace locforge::analysis {
+LOCFORGE_DECLARE_STAGE(AddImageContent);
+LOCFORGE_DECLARE_STAGE(AddContentTables);
+}  // namespace locforge::analysis
+
+LOCFORGE_PLUGIN("analysis", "1.0.0", "Analyses of localization results by image content: low-frequency score, crowdedness, the paper's Tables 5 and 6",
+                locforge::Exported<locforge::analysis::AddImageContent>,
+                locforge::Exported<locforge::analysis::AddContentTables>)
