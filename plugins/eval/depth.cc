@@ -96,7 +96,7 @@ class DepthEvalStage : public Stage<DepthEvalOptions> {
       const depth::DepthMap e = depth::DecodeDepth(ReadFile(est_file), w, h, est_file.string());
       const depth::DepthMap ref = depth::DecodeDepth(ReadFile(ref_file), w, h, ref_file.string());
       depth::DepthErrors one;
-      depth::AccumulateDepthErrors(e, ref, nullptr, &one);
+      depth::AccumulateDepthErrors(e, ref, nullptr, o.tolerance_m, &one);
       all[r.device_id].Merge(one);
       all[""].Merge(one);
       if (!masks.empty()) {
@@ -109,7 +109,7 @@ class DepthEvalStage : public Stage<DepthEvalOptions> {
         for (int y = 0; y < h; ++y)
           for (int x = 0; x < w; ++x) keep[static_cast<size_t>(y) * w + x] = mask.at<uint8_t>(y, x) <= 127;
         depth::DepthErrors s;
-        depth::AccumulateDepthErrors(e, ref, &keep, &s);
+        depth::AccumulateDepthErrors(e, ref, &keep, o.tolerance_m, &s);
         still[r.device_id].Merge(s);
         still[""].Merge(s);
       }
@@ -119,7 +119,9 @@ class DepthEvalStage : public Stage<DepthEvalOptions> {
     }
     Table t;
     const std::string within = "within_" + FormatDouble(o.tolerance_m) + "m_percent";
-    t.header = {"camera", "pixels", "images", "coverage_percent", "median_m", "p90_m", within};
+    const std::string tol = FormatDouble(o.tolerance_m);
+    t.header = {"camera", "pixels", "images", "coverage_percent", "median_m", "p90_m", within,
+                "nearer_by_" + tol + "m_percent", "farther_by_" + tol + "m_percent"};
     auto add = [&](const std::string& device, const std::string& pixels, const depth::DepthErrors& d) {
       auto f = [](double v) {
         std::ostringstream s;
@@ -128,14 +130,18 @@ class DepthEvalStage : public Stage<DepthEvalOptions> {
         return s.str();
       };
       t.rows.push_back({device.empty() ? "all" : device, pixels, std::to_string(images[device]),
-                        f(100 * d.Coverage()), f(d.Quantile(0.5)), f(d.Quantile(0.9)), f(100 * d.FractionWithin(o.tolerance_m))});
+                        f(100 * d.Coverage()), f(d.Quantile(0.5)), f(d.Quantile(0.9)), f(100 * d.FractionWithin(o.tolerance_m)),
+                        f(100.0 * d.nearer / std::max<size_t>(1, d.compared)),
+                        f(100.0 * d.farther / std::max<size_t>(1, d.compared))});
     };
     for (const auto& [device, d] : all) add(device, "all", d);
     for (const auto& [device, d] : still) add(device, "without people", d);
     const fs::path out = ctx.output_dir();
     WriteFileAtomic(out / "depth.md", "# Depth maps against the reference\n\n"
                                       "coverage: share of the reference's valid pixels that have a depth; errors "
-                                      "|estimate - reference| over the pixels with both (0.5 mm bins).\n\n" +
+                                      "|estimate - reference| over the pixels with both (0.5 mm bins); nearer / "
+                                      "farther: the estimate off by more than the tolerance towards / away from the "
+                                      "camera (an occluder the reference lacks / a surface seen through a gap).\n\n" +
                                           evaluation::ToMarkdown(t));
     WriteFileAtomic(out / "depth.csv", evaluation::ToCsv(t));
     ctx.Info(evaluation::ToMarkdown(t));

@@ -98,7 +98,7 @@ DepthMap ProjectMap(const MapIndex& map, const Camera& camera, const Pose& T_cam
 }
 
 void AccumulateDepthErrors(const DepthMap& estimate, const DepthMap& reference, const std::vector<uint8_t>* keep,
-                           DepthErrors* e) {
+                           double tolerance_m, DepthErrors* e) {
   if (estimate.width != reference.width || estimate.height != reference.height)
     throw Error("depth maps of different sizes");
   for (size_t i = 0; i < reference.z.size(); ++i) {
@@ -107,7 +107,10 @@ void AccumulateDepthErrors(const DepthMap& estimate, const DepthMap& reference, 
     ++e->reference_valid;
     if (!(estimate.z[i] > 0)) continue;
     ++e->compared;
-    e->Add(std::abs(estimate.z[i] - reference.z[i]));
+    const double d = estimate.z[i] - reference.z[i];
+    e->nearer += d < -tolerance_m;
+    e->farther += d > tolerance_m;
+    e->Add(std::abs(d));
   }
 }
 
@@ -119,6 +122,8 @@ void DepthErrors::Add(double abs_error_m) {
 void DepthErrors::Merge(const DepthErrors& other) {
   compared += other.compared;
   reference_valid += other.reference_valid;
+  nearer += other.nearer;
+  farther += other.farther;
   for (size_t i = 0; i < histogram.size(); ++i) histogram[i] += other.histogram[i];
 }
 

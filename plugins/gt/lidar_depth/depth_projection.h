@@ -76,6 +76,7 @@ struct DepthErrors {
   static constexpr int kBins = 10000;
   size_t compared = 0;         // pixels with both depths
   size_t reference_valid = 0;  // pixels with a reference depth (and keep)
+  size_t nearer = 0, farther = 0;  // compared pixels off by more than the tolerance, each way
   std::vector<uint64_t> histogram = std::vector<uint64_t>(kBins + 1, 0);
   void Add(double abs_error_m);
   void Merge(const DepthErrors& other);
@@ -85,8 +86,11 @@ struct DepthErrors {
   double FractionWithin(double m) const;
   double Coverage() const { return reference_valid ? static_cast<double>(compared) / reference_valid : 0; }
 };
+// nearer / farther: the estimate is nearer / farther than the reference by
+// more than tolerance_m (an occluder the reference does not have, e.g. a
+// person the LiDAR saw; a surface seen through a gap).
 void AccumulateDepthErrors(const DepthMap& estimate, const DepthMap& reference, const std::vector<uint8_t>* keep,
-                           DepthErrors* errors);
+                           double tolerance_m, DepthErrors* errors);
 
 // kapture .depth files: width x height float32, row-major, little endian.
 std::string EncodeDepth(const DepthMap& depth);

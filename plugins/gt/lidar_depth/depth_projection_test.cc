@@ -88,7 +88,7 @@ TEST(ProjectMap, MatchesRayCastDepthAndHidesWhatThePillarOccludes) {
       }
     }
   DepthErrors e;
-  AccumulateDepthErrors(depth, exact, nullptr, &e);
+  AccumulateDepthErrors(depth, exact, nullptr, 0.05, &e);
   if (std::getenv("LOCFORGE_DEBUG_DEPTH"))
     for (int y = 0; y < camera.height; y += 8) {
       for (int x = 0; x < camera.width; x += 4) {
