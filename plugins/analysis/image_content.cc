@@ -31,8 +31,7 @@ struct ImageContentOptions {
     s.Add("low_frequency_below", &O::low_frequency_below, "an image is low-frequency when its score is below this (paper: 20)");
     s.Add("masks", &O::masks,
           "folder of person masks, <masks>/<image path with extension .png>, 255 where a person is (e.g. a "
-          "simulator recording's truth/masks); empty: no crowdedness")
-        .Path();
+          "simulator recording's truth/masks; checked per image when the stage runs); empty: no crowdedness");
     s.Add("crowded_at_least", &O::crowded_at_least, "an image is crowded at this % of person pixels or more (paper: 20)")
         .Range(0, 100);
   }
