@@ -3,7 +3,9 @@
 // tree), vocab_tree_matcher, point_triangulator on the fixed map poses, then
 // the queries: feature_extractor, vocab_tree_matcher (queries against all),
 // image_registrator. Same triangulator/registrator parameters as the other
-// stages of this plugin.
+// stages of this plugin. With matching = exhaustive (COLMAP's classic recipe
+// for small maps): exhaustive_matcher over the map, then every query against
+// every map image through matches_importer (no query x query pairs).
 #include <map>
 #include <sstream>
 
@@ -24,8 +26,13 @@ struct VocabTreeOptions {
   int num_visual_words = 4096;    // vocab_tree_builder words when building.
   int num_images = 100;           // VocabTreeMatching.num_images (neighbours per image).
   int max_num_features = 8192;    // SiftExtraction.max_num_features.
+  std::string matching = "vocab_tree";  // vocab_tree | exhaustive (map x map, query x map).
   double timeout_s = 0;           // Kill a colmap step after this many seconds (0: never).
   static void Declare(ParamSchema<VocabTreeOptions>& s) {
+    s.Add("matching", &VocabTreeOptions::matching,
+          "vocab_tree: vocab_tree_matcher (map, then queries); exhaustive: every map pair, then every query x map "
+          "pair (small maps; no tree)")
+        .Choices({"vocab_tree", "exhaustive"});
     s.Add("vocab_tree", &VocabTreeOptions::vocab_tree, "supplied vocabulary tree file; empty = build on the map");
     s.Add("num_visual_words", &VocabTreeOptions::num_visual_words, "vocab_tree_builder --num_visual_words").Min(16);
     s.Add("num_images", &VocabTreeOptions::num_images, "VocabTreeMatching.num_images").Min(1);
@@ -40,12 +47,13 @@ class VocabTreeStage : public Stage<VocabTreeOptions> {
     StageMeta meta = {"pipeline",
             "colmap_vocab_tree",
             "Classic COLMAP baseline: SIFT feature_extractor, vocab_tree_builder (or a supplied "
-            "tree), vocab_tree_matcher, point_triangulator on the map poses, image_registrator",
+            "tree), vocab_tree_matcher (or exhaustive matching), point_triangulator on the map poses, "
+            "image_registrator",
             {{"map", "kapture.dataset", "map images (records_data) with poses"},
              {"query", "kapture.dataset", "query images (records_data)"}},
             {{"trajectories", "kapture.trajectories", "registered query poses (+ failures.txt)"}},
             LF_STAGE_NONDETERMINISTIC};
-    meta.version = "1.1.0";
+    meta.version = "1.2.0";
     return meta;
   }
   using Stage::Stage;
@@ -124,20 +132,24 @@ void VocabTreeStage::Run(RunContext& ctx) {
     map_records = AddDatasetImages(map, &db, out / "map_images.txt");
   }
   Extract(ctx, map_db, map.root() / kp::layout::kRecordsData, out / "map_images.txt", "map");
+  const bool exhaustive = o.matching == "exhaustive";
   fs::path tree = o.vocab_tree;
-  if (tree.empty()) {
+  if (tree.empty() && !exhaustive) {
     tree = out / "vocab_tree.bin";
     Run(ctx, {"vocab_tree_builder", "--database_path", map_db.string(), "--vocab_tree_path",
               tree.string(), "--num_visual_words", std::to_string(o.num_visual_words)},
         "vocab_tree_builder");
   }
-  const std::vector<std::string> match_common = {
-      "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", std::to_string(ctx.threads()),
-      "--VocabTreeMatching.vocab_tree_path", tree.string(), "--VocabTreeMatching.num_images",
-      std::to_string(o.num_images)};
-  std::vector<std::string> a = {"vocab_tree_matcher", "--database_path", map_db.string()};
+  const std::vector<std::string> sift_matching = {"--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads",
+                                                  std::to_string(ctx.threads())};
+  std::vector<std::string> match_common = sift_matching;
+  if (!exhaustive)
+    match_common.insert(match_common.end(), {"--VocabTreeMatching.vocab_tree_path", tree.string(),
+                                              "--VocabTreeMatching.num_images", std::to_string(o.num_images)});
+  std::vector<std::string> a = {exhaustive ? "exhaustive_matcher" : "vocab_tree_matcher", "--database_path",
+                                map_db.string()};
   a.insert(a.end(), match_common.begin(), match_common.end());
-  Run(ctx, a, "vocab_tree_matcher_map");
+  Run(ctx, a, exhaustive ? "exhaustive_matcher_map" : "vocab_tree_matcher_map");
   // Fixed-pose model with COLMAP's ids and keypoints.
   colmap::Reconstruction input;
   {
@@ -181,10 +193,22 @@ void VocabTreeStage::Run(RunContext& ctx) {
     query_records = AddDatasetImages(query, &db, out / "query_images.txt");
   }
   Extract(ctx, db_path, query.root() / kp::layout::kRecordsData, out / "query_images.txt", "query");
-  a = {"vocab_tree_matcher", "--database_path", db_path.string(),
-       "--VocabTreeMatching.match_list_path", (out / "query_images.txt").string()};
-  a.insert(a.end(), match_common.begin(), match_common.end());
-  Run(ctx, a, "vocab_tree_matcher_query");
+  if (exhaustive) {
+    // Every query x map pair, by name (matches_importer's pair list).
+    std::ostringstream pairs;
+    for (const auto& q : query_records)
+      for (const auto& m : map_records) pairs << q.path << " " << m.path << "\n";
+    WriteFileAtomic(out / "query_pairs.txt", pairs.str());
+    a = {"matches_importer", "--database_path", db_path.string(), "--match_list_path",
+         (out / "query_pairs.txt").string(), "--match_type", "pairs"};
+    a.insert(a.end(), sift_matching.begin(), sift_matching.end());
+    Run(ctx, a, "matches_importer_query");
+  } else {
+    a = {"vocab_tree_matcher", "--database_path", db_path.string(),
+         "--VocabTreeMatching.match_list_path", (out / "query_images.txt").string()};
+    a.insert(a.end(), match_common.begin(), match_common.end());
+    Run(ctx, a, "vocab_tree_matcher_query");
+  }
   fs::create_directories(out / "model");
   a = {"image_registrator", "--database_path", db_path.string(), "--input_path",
        (out / "map_model").string(), "--output_path", (out / "model").string()};
