@@ -3,6 +3,7 @@
 // (analysis/content_tables). Per image, so it shards like feature extraction.
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <map>
 #include <sstream>
 

@@ -5,6 +5,7 @@
 // static scene; people move between the scans and the image).
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <map>
 #include <sstream>
 

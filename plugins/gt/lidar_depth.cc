@@ -1,6 +1,8 @@
 // gt/lidar_depth (paper Figure 6): the LiDAR map projected into every posed
 // image as a kapture depth map, the scene coordinates ESAC-style methods train
 // on and a dense hand-off to MVS. Per image, so it shards.
+#include <algorithm>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <sstream>
