@@ -119,9 +119,8 @@ class ContentTablesStage : public Stage<ContentTablesOptions> {
     std::vector<MethodErrors> methods;
     for (const fs::path& report : ctx.Inputs("reports")) {
       const fs::path per_query = report / "per_query.csv";
-      const Table summary = evaluation::FromCsv(ReadFile(report / "summary.csv"), (report / "summary.csv").string());
       MethodErrors m;
-      m.method = summary.rows.empty() ? report.filename().string() : summary.rows[0][0];
+      m.method = evaluation::ReportMethod(report);
       m.errors = ParsePerQuery(evaluation::FromCsv(ReadFile(per_query), per_query.string()), per_query.string());
       methods.push_back(std::move(m));
     }

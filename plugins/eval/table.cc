@@ -64,9 +64,8 @@ class CombinedTable : public Stage<TableOptions> {
       const fs::path file = report / "curve.csv";
       if (!fs::exists(file)) continue;
       const Table c = FromCsv(ReadFile(file), file.string());
-      const Table summary = FromCsv(ReadFile(report / "summary.csv"), "summary.csv");
       plot::Series s;
-      s.label = summary.rows.empty() ? report.filename().string() : summary.rows[0][0];
+      s.label = ReportMethod(report);
       for (const auto& row : c.rows)
         if (row.size() == 5 && row[0] == "all" && row[1] == "all") {
           s.x.push_back(std::stod(row[2]));

@@ -11,6 +11,7 @@
 
 #include "testing.h"
 #include "locforge/fs.h"
+#include "locforge/kapture/kapture.h"
 
 namespace locforge::sfm_gt {
 namespace {
@@ -91,14 +92,10 @@ TEST(LidarDepthPipeline, TinyRecordingAgainstExactDepth) {
             0)
       << ReadFile(dir / "run.log");
   const fs::path depth = dir / "ws/nodes/depth";
-  const auto records = ReadCsv(depth / "sensors/records_depth.txt");
-  size_t maps = 0;
-  for (const auto& r : records)
-    if (r.size() == 3 && r[0].rfind("#", 0) != 0) {
-      ++maps;
-      EXPECT_TRUE(fs::exists(depth / "sensors/records_data" / r[2].substr(r[2].find_first_not_of(' ')))) << r[2];
-    }
-  EXPECT_EQ(maps, 152u);  // every mapping image of tiny
+  const kapture::Kapture depth_kapture(depth);
+  const auto records = depth_kapture.ReadDataRecords(kapture::kSensorDepth);
+  EXPECT_EQ(records.size(), 152u);  // every mapping image of tiny
+  for (const auto& r : records) EXPECT_TRUE(fs::exists(depth_kapture.RecordDataPath(r.path))) << r.path;
   const auto csv = ReadCsv(dir / "ws/nodes/depth_eval/depth.csv");
   ASSERT_GE(csv.size(), 2u);
   std::map<std::string, size_t> column;

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "locforge/error.h"
+#include "locforge/kapture/csv.h"
 
 namespace locforge::analysis {
 
@@ -117,6 +118,18 @@ Table CrowdednessTable(const std::vector<MethodErrors>& methods, const std::vect
   return SplitTable(methods, content, thresholds, "crowded", "other", [](const ImageContent& c) { return c.crowded; });
 }
 
+namespace {
+
+// A 0/1 flag field ("" allowed when `may_be_empty`), as both CSV files write them.
+bool ParseFlag(const std::string& text, const std::string& file, int64_t line, const std::string& field,
+               bool may_be_empty = false) {
+  if (text == "1") return true;
+  if (text == "0" || (may_be_empty && text.empty())) return false;
+  throw InputError(file, line, field, "expected 0 or 1, got '" + text + "'");
+}
+
+}  // namespace
+
 std::vector<ImageContent> ParseContent(const Table& content, const std::string& file) {
   const std::vector<std::string> expected = {"image", "device_id", "low_frequency_score", "low_frequency",
                                              "crowdedness_percent", "crowded"};
@@ -128,14 +141,10 @@ std::vector<ImageContent> ParseContent(const Table& content, const std::string& 
     if (row.size() != expected.size()) throw InputError(file, line, "row", "expected 6 fields");
     ImageContent c;
     c.image = row[0];
-    try {
-      c.low_frequency_score = std::stod(row[2]);
-      c.crowdedness_percent = row[4].empty() ? -1 : std::stod(row[4]);
-    } catch (const std::exception&) {
-      throw InputError(file, line, "low_frequency_score/crowdedness_percent", "not numbers");
-    }
-    c.low_frequency = row[3] == "1";
-    c.crowded = row[5] == "1";
+    c.low_frequency_score = kapture::ParseDouble(row[2], file, line, expected[2]);
+    c.crowdedness_percent = row[4].empty() ? -1 : kapture::ParseDouble(row[4], file, line, expected[4]);
+    c.low_frequency = ParseFlag(row[3], file, line, expected[3]);
+    c.crowded = ParseFlag(row[5], file, line, expected[5], /*may_be_empty=*/row[4].empty());
     out.push_back(c);
   }
   return out;
@@ -156,18 +165,10 @@ std::vector<QueryError> ParsePerQuery(const Table& per_query, const std::string&
     e.device = row[1];
     e.group = row[2];
     e.split = row[3];
-    if (row[4] != "0" && row[4] != "1") throw InputError(file, line, "localized", "expected 0 or 1, got '" + row[4] + "'");
-    e.localized = row[4] == "1";
+    e.localized = ParseFlag(row[4], file, line, expected[4]);
     if (e.localized) {
-      try {
-        size_t used = 0;
-        e.position_m = std::stod(row[5], &used);
-        if (used != row[5].size()) throw std::invalid_argument("trailing");
-        e.rotation_deg = std::stod(row[6], &used);
-        if (used != row[6].size()) throw std::invalid_argument("trailing");
-      } catch (const std::exception&) {
-        throw InputError(file, line, "position_error_m/rotation_error_deg", "not numbers: '" + row[5] + "', '" + row[6] + "'");
-      }
+      e.position_m = kapture::ParseDouble(row[5], file, line, expected[5]);
+      e.rotation_deg = kapture::ParseDouble(row[6], file, line, expected[6]);
     }
     out.push_back(e);
   }

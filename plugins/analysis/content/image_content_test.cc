@@ -138,6 +138,29 @@ TEST(PerQuery, ParsesAndRefusesMalformedRows) {
   }
 }
 
+TEST(Content, ParsesAndRefusesMalformedRows) {
+  evaluation::Table t;
+  t.header = {"image", "device_id", "low_frequency_score", "low_frequency", "crowdedness_percent", "crowded"};
+  t.rows = {{"a.jpg", "cam", "4.5", "1", "", ""}, {"b.jpg", "cam", "30", "0", "25", "1"}};
+  const auto c = ParseContent(t, "content.csv");
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_TRUE(c[0].low_frequency);
+  EXPECT_LT(c[0].crowdedness_percent, 0);  // no mask
+  EXPECT_TRUE(c[1].crowded);
+  EXPECT_DOUBLE_EQ(c[1].crowdedness_percent, 25);
+  for (const auto& [column, bad] : std::vector<std::pair<size_t, std::string>>{{4, "25%"}, {5, "yes"}, {2, ""}}) {
+    evaluation::Table broken = t;
+    broken.rows[1][column] = bad;
+    try {
+      ParseContent(broken, "content.csv");
+      FAIL() << "accepted '" << bad << "' in column " << t.header[column];
+    } catch (const InputError& err) {
+      EXPECT_NE(std::string(err.what()).find("content.csv:3"), std::string::npos) << err.what();
+      EXPECT_NE(std::string(err.what()).find(t.header[column]), std::string::npos) << err.what();
+    }
+  }
+}
+
 TEST(Ranking, LocalizedFirstThenErrorsThenName) {
   const auto r = RankedBestFirst({Q("z", false, 0, 0), Q("b", true, 0.2, 1), Q("a", true, 0.2, 1), Q("c", true, 0.01, 9),
                                   Q("y", false, 0, 0)});

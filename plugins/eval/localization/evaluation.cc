@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "locforge/error.h"
+#include "locforge/fs.h"
 
 namespace locforge::evaluation {
 
@@ -113,6 +114,12 @@ std::string ToCsv(const Table& t) {
   row(t.header);
   for (const auto& r : t.rows) row(r);
   return o.str();
+}
+
+std::string ReportMethod(const std::filesystem::path& report) {
+  const std::filesystem::path file = report / "summary.csv";
+  const Table summary = FromCsv(ReadFile(file), file.string());
+  return summary.rows.empty() ? report.filename().string() : summary.rows[0][0];
 }
 
 Table FromCsv(const std::string& text, const std::string& file_name) {

@@ -5,6 +5,7 @@
 #ifndef LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
 #define LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
 
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -53,6 +54,10 @@ std::string ToCsv(const Table& table);    // RFC 4180 quoting when needed
 std::string ToLatex(const Table& table);  // tabular, special characters escaped
 // Parses ToCsv's output back (quoted fields, doubled quotes).
 Table FromCsv(const std::string& text, const std::string& file_name);
+
+// The method label of an eval/localization report folder: the first row of
+// its summary.csv, else the folder's name.
+std::string ReportMethod(const std::filesystem::path& report);
 
 // Figure 7's curve: recall (%) with both thresholds varying together,
 // position p in [0, max_position_m] over `steps` intervals and angle
