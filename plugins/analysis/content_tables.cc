@@ -112,24 +112,13 @@ class ContentTablesStage : public Stage<ContentTablesOptions> {
   void Run(RunContext& ctx) override {
     const auto& o = options();
     const fs::path content_file = ctx.Input("content") / "content.csv";
-    const std::vector<ImageContent> content =
-        ParseContent(evaluation::FromCsv(ReadFile(content_file), content_file.string()), content_file.string());
+    const std::vector<ImageContent> content = ReadContentReport(ctx.Input("content"));
     std::map<std::string, const ImageContent*> by_image;
     for (const auto& c : content) by_image[c.image] = &c;
     std::vector<MethodErrors> methods;
-    for (const fs::path& report : ctx.Inputs("reports")) {
-      const fs::path per_query = report / "per_query.csv";
-      MethodErrors m;
-      m.method = evaluation::ReportMethod(report);
-      m.errors = ParsePerQuery(evaluation::FromCsv(ReadFile(per_query), per_query.string()), per_query.string());
-      methods.push_back(std::move(m));
-    }
-    std::vector<evaluation::Threshold> thresholds;
+    for (const fs::path& report : ctx.Inputs("reports")) methods.push_back(ReadMethodReport(report));
     std::string threshold_text;
-    for (size_t i = 0; i < o.positions_m.size(); ++i) {
-      thresholds.push_back({o.positions_m[i], o.angles_deg[i]});
-      threshold_text += (i ? ", " : "") + FormatDouble(o.positions_m[i]) + " m / " + FormatDouble(o.angles_deg[i]) + " deg";
-    }
+    const std::vector<evaluation::Threshold> thresholds = MakeThresholds(o.positions_m, o.angles_deg, &threshold_text);
     const fs::path out = ctx.output_dir();
     const Table t5 = LowFrequencyTable(methods, content, thresholds);
     const std::string note = "Recall (%) at (" + threshold_text + "); unlocalized queries count as failures.\n\n";

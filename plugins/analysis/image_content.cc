@@ -46,7 +46,11 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     StageMeta meta = {"analysis", "image_content",
                       "Per image: low-frequency score (mean |I - lowpass(I)|, Fourier domain) and crowdedness "
                       "(% person pixels of a mask), the inputs of the paper's Tables 5 and 6",
-                      {{"images", "kapture.dataset", "the query images"}},
+                      {{"images", "kapture.dataset", "the query images"},
+                       {"recording", "kapture.dataset",
+                        "a simulator recording instead of the masks parameter: its truth/masks (image paths of the "
+                        "query kapture relative to the recording, e.g. validation/...)",
+                        LF_PORT_OPTIONAL}},
                       {{"content", "report", "content.csv (image, device_id, low_frequency_score, low_frequency, "
                                              "crowdedness_percent, crowded), content.md"}}};
     meta.version = "1.0.0";
@@ -66,10 +70,11 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     std::ostringstream line;
     line.precision(17);
     line << LowFrequencyScore(gray, lf) << ' ';
-    if (options().masks.empty()) {
+    const fs::path masks = MasksFolder(ctx);
+    if (masks.empty()) {
       line << -1;
     } else {
-      const fs::path mask_file = fs::path(options().masks) / fs::path(image).replace_extension(".png");
+      const fs::path mask_file = masks / fs::path(image).replace_extension(".png");
       if (!fs::exists(mask_file))
         throw InputError(mask_file.string(), 0, "masks", "no person mask for image " + image);
       const cv::Mat mask = cv::imread(mask_file.string(), cv::IMREAD_GRAYSCALE);
@@ -80,6 +85,17 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     }
     line << '\n';
     WriteFileAtomic(ItemFile(ctx.output_dir(), image), line.str());
+  }
+
+  // The masks parameter, or the recording input's truth/masks.
+  fs::path MasksFolder(RunContext& ctx) const {
+    if (!ctx.HasInput("recording")) return options().masks;
+    if (!options().masks.empty())
+      throw ParamError("analysis/image_content: the recording input replaces the masks parameter; keep one");
+    const fs::path masks = ctx.Input("recording") / "truth" / "masks";
+    if (!fs::is_directory(masks))
+      throw InputError(masks.string(), 0, "recording", "no person masks (simulate with masks: true)");
+    return masks;
   }
 
   void Finalize(RunContext& ctx) override {

@@ -4,8 +4,10 @@
 namespace locforge::analysis {
 LOCFORGE_DECLARE_STAGE(AddImageContent);
 LOCFORGE_DECLARE_STAGE(AddContentTables);
+LOCFORGE_DECLARE_STAGE(AddCrowdSweep);
 }  // namespace locforge::analysis
 
-LOCFORGE_PLUGIN("analysis", "1.0.0", "Analyses of localization results by image content: low-frequency score, crowdedness, the paper's Tables 5 and 6",
+LOCFORGE_PLUGIN("analysis", "1.0.0", "Analyses of localization results by image content: low-frequency score, crowdedness, the paper's Tables 5 and 6, recall vs crowd density",
                 locforge::Exported<locforge::analysis::AddImageContent>,
-                locforge::Exported<locforge::analysis::AddContentTables>)
+                locforge::Exported<locforge::analysis::AddContentTables>,
+                locforge::Exported<locforge::analysis::AddCrowdSweep>)

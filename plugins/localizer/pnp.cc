@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include "absolute_pose.h"
+#include "query_results.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/kapture/rigs.h"
 #include "locforge/plugin.h"
@@ -127,64 +128,27 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
     RansacOptions ransac = options().ToRansac();
     ransac.seed ^= std::hash<std::string>{}(name);
     AbsolutePoseResult r = EstimateAbsolutePose(cs, cameras, ransac);
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::ostringstream out;
-    out.precision(17);
-    if (r.success) {
-      const Pose& p = r.rig_from_world;
-      out << "ok " << p.q.w() << " " << p.q.x() << " " << p.q.y() << " " << p.q.z() << " "
-          << p.t.x() << " " << p.t.y() << " " << p.t.z();
-    } else {
-      out << "failed " << r.failure;
-    }
-    out << "\n" << cs.size() << " " << r.num_inliers << " " << r.iterations << " " << seconds << "\n";
-    WriteFileAtomic(ResultFile(ctx, name), out.str());
+    QueryOutcome outcome;
+    outcome.success = r.success;
+    outcome.device_from_world = r.rig_from_world;
+    outcome.failure = r.failure;
+    outcome.stats = {double(cs.size()), double(r.num_inliers), double(r.iterations),
+                     std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()};
+    WriteQueryResult(ctx.output_dir(), name, outcome);
   }
 
   void Finalize(RunContext& ctx) override {
     Load(ctx);
-    kp::Trajectories trajectories;
-    std::ostringstream failures, stats;
-    failures << "# item, timestamp, device_id, reason\n";
-    stats << "item,status,correspondences,inliers,iterations,seconds\n";
-    int ok = 0;
-    for (const auto& [name, item] : items_) {
-      std::istringstream in(ReadFile(ResultFile(ctx, name)));
-      std::string status;
-      in >> status;
-      if (status == "ok") {
-        double v[7];
-        for (double& x : v) in >> x;
-        trajectories.Set(item.timestamp, item.device,
-                         Pose(Eigen::Quaterniond(v[0], v[1], v[2], v[3]), {v[4], v[5], v[6]}));
-        ++ok;
-      } else {
-        std::string reason;
-        std::getline(in, reason);
-        failures << name << ", " << item.timestamp << ", " << item.device << "," << reason << "\n";
-      }
-      std::string counts;
-      std::getline(in >> std::ws, counts);
-      for (char& c : counts) c = c == ' ' ? ',' : c;
-      stats << name << "," << status << "," << counts << "\n";
-    }
-    const fs::path out = ctx.output_dir();
-    fs::create_directories(out / "sensors");
-    kp::WriteSensors(out / kp::layout::kSensors, query_->sensors());
-    if (!query_->rigs().empty()) kp::WriteRigs(out / kp::layout::kRigs, query_->rigs());
-    kp::WriteTrajectories(out / kp::layout::kTrajectories, trajectories);
-    WriteFileAtomic(out / "failures.txt", failures.str());
-    WriteFileAtomic(out / "localization_stats.csv", stats.str());
+    std::vector<QueryItemInfo> items;
+    for (const auto& [name, item] : items_) items.push_back({name, item.timestamp, item.device});
+    const int ok = WriteLocalizationOutputs(ctx.output_dir(), items,
+                                            {"correspondences", "inliers", "iterations", "seconds"},
+                                            query_->sensors(), query_->rigs());
     ctx.Info("localized " + std::to_string(ok) + " of " + std::to_string(items_.size()) +
              " queries");
   }
 
  private:
-  static fs::path ResultFile(RunContext& ctx, const std::string& name) {
-    return SafeJoin(ctx.output_dir() / "results", name + ".txt");
-  }
-
   void AddCorrespondences(const std::string& image, const Camera& camera, int camera_index,
                           std::vector<Correspondence>* cs) {
     kp::FeatureArray keypoints;

@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+
+#include "locforge/fs.h"
 #include <stdexcept>
 
 #include "locforge/error.h"
 #include "locforge/kapture/csv.h"
+#include "locforge/params.h"
 
 namespace locforge::analysis {
 
@@ -54,9 +57,6 @@ double CrowdednessPercent(const cv::Mat& mask) {
   return 100.0 * cv::countNonZero(mask > 127) / static_cast<double>(mask.total());
 }
 
-namespace {
-
-// The recall cells of `errors` at every threshold, "a / b / c".
 std::string RecallCell(const std::vector<QueryError>& errors, const std::vector<Threshold>& thresholds) {
   if (errors.empty()) return "-";
   std::string cell;
@@ -64,6 +64,8 @@ std::string RecallCell(const std::vector<QueryError>& errors, const std::vector<
     cell += (i ? " / " : "") + evaluation::Percent(evaluation::Recall(errors, thresholds[i]));
   return cell;
 }
+
+namespace {
 
 // Splits each method's errors in two by a predicate on the query's content.
 template <class Predicate>
@@ -185,6 +187,30 @@ std::vector<QueryError> RankedBestFirst(std::vector<QueryError> errors) {
     return a.image < b.image;
   });
   return errors;
+}
+
+std::vector<Threshold> MakeThresholds(const std::vector<double>& positions_m, const std::vector<double>& angles_deg,
+                                      std::string* text) {
+  std::vector<Threshold> out;
+  text->clear();
+  for (size_t i = 0; i < positions_m.size() && i < angles_deg.size(); ++i) {
+    out.push_back({positions_m[i], angles_deg[i]});
+    *text += (i ? ", " : "") + FormatDouble(positions_m[i]) + " m / " + FormatDouble(angles_deg[i]) + " deg";
+  }
+  return out;
+}
+
+std::vector<ImageContent> ReadContentReport(const std::filesystem::path& folder) {
+  const fs::path file = folder / "content.csv";
+  return ParseContent(evaluation::FromCsv(ReadFile(file), file.string()), file.string());
+}
+
+MethodErrors ReadMethodReport(const std::filesystem::path& report) {
+  const fs::path per_query = report / "per_query.csv";
+  MethodErrors m;
+  m.method = evaluation::ReportMethod(report);
+  m.errors = ParsePerQuery(evaluation::FromCsv(ReadFile(per_query), per_query.string()), per_query.string());
+  return m;
 }
 
 }  // namespace locforge::analysis

@@ -11,6 +11,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -66,12 +67,26 @@ evaluation::Table CrowdednessTable(const std::vector<MethodErrors>& methods,
                                    const std::vector<ImageContent>& content,
                                    const std::vector<evaluation::Threshold>& thresholds);
 
+// The recalls of `errors` at every threshold as one cell, "a / b / c" ("-": none).
+std::string RecallCell(const std::vector<evaluation::QueryError>& errors,
+                       const std::vector<evaluation::Threshold>& thresholds);
+
 // analysis/image_content's content.csv back (InputError naming file and line).
 std::vector<ImageContent> ParseContent(const evaluation::Table& content, const std::string& file);
 
 // eval/localization's per_query.csv back into errors (InputError naming the
 // file and line on a malformed row).
 std::vector<evaluation::QueryError> ParsePerQuery(const evaluation::Table& per_query, const std::string& file);
+
+// Thresholds from parallel position (m) and angle (deg) lists, and their
+// text "0.1 m / 1 deg, ..." for table notes.
+std::vector<evaluation::Threshold> MakeThresholds(const std::vector<double>& positions_m,
+                                                  const std::vector<double>& angles_deg, std::string* text);
+
+// The same, read from an analysis/image_content output folder (content.csv)
+// and an eval/localization report folder (per_query.csv + the method name).
+std::vector<ImageContent> ReadContentReport(const std::filesystem::path& folder);
+MethodErrors ReadMethodReport(const std::filesystem::path& report);
 
 // Queries ordered best first: localized before not, then by position error,
 // rotation error and name (a total order, so figures are reproducible).

@@ -1,4 +1,5 @@
 #include "image_content.h"
+#include "testing_queries.h"
 
 #include <gtest/gtest.h>
 
@@ -85,14 +86,7 @@ TEST(Crowdedness, CountsMaskPixels) {
   EXPECT_THROW(CrowdednessPercent(cv::Mat(4, 4, CV_32F)), std::invalid_argument);
 }
 
-QueryError Q(const std::string& image, bool localized, double m, double deg) {
-  QueryError e;
-  e.image = image;
-  e.localized = localized;
-  e.position_m = m;
-  e.rotation_deg = deg;
-  return e;
-}
+using testing::Q;
 
 TEST(Tables, SplitByContentWithCounts) {
   // a, b: low-frequency (score < 20); c, d: other. a and c within 0.1 m / 1 deg.

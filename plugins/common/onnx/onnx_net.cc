@@ -12,9 +12,20 @@
 namespace locforge::learned {
 
 cv::dnn::Net& ThreadNet(const std::string& model) {
-  thread_local std::map<std::string, cv::dnn::Net> nets;
+  // Keyed by the file's size and modification time too: a model rewritten
+  // at the same path (retrained between two runs of one process) is
+  // reloaded, never served stale.
+  struct Entry {
+    std::string stamp;
+    cv::dnn::Net net;
+  };
+  thread_local std::map<std::string, Entry> nets;
+  std::error_code ec;
+  const auto size = fs::file_size(model, ec);
+  const auto time = fs::last_write_time(model, ec);
+  const std::string stamp = ec ? "" : std::to_string(size) + "@" + std::to_string(time.time_since_epoch().count());
   auto it = nets.find(model);
-  if (it != nets.end()) return it->second;
+  if (it != nets.end() && it->second.stamp == stamp) return it->second.net;
   cv::dnn::Net net;
   try {
     net = cv::dnn::readNetFromONNX(model);
@@ -22,7 +33,9 @@ cv::dnn::Net& ThreadNet(const std::string& model) {
     throw InputError(model, 0, "model", std::string("cannot load the ONNX model: ") + e.what());
   }
   if (net.empty()) throw InputError(model, 0, "model", "cannot load the ONNX model");
-  return nets.emplace(model, std::move(net)).first->second;
+  Entry& entry = nets[model];
+  entry = Entry{stamp, std::move(net)};
+  return entry.net;
 }
 
 cv::Mat ToBlob(const cv::Mat& image) {

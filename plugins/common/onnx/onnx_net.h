@@ -13,7 +13,8 @@
 namespace locforge::learned {
 
 // The network of `model` (an .onnx file) for the calling thread, loaded on
-// first use. Throws InputError naming the file when it cannot be loaded.
+// first use and again when the file changes (size or modification time).
+// Throws InputError naming the file when it cannot be loaded.
 cv::dnn::Net& ThreadNet(const std::string& model);
 
 // HxWx3 CV_32FC3 -> 1x3xHxW CV_32F (channel c of the blob = channel c of the image).

@@ -29,6 +29,7 @@ bool SimOptions::Check(std::string* why) const {
   if (validation_sequences < 0 || test_sequences < 0) return *why = "query sequence counts must be >= 0", false;
   if (mapping_duration_s < 1 || query_duration_s < 1) return *why = "sequences must last at least 1 s", false;
   if (crowdedness < 0 || crowdedness > 50) return *why = "crowdedness must be in [0, 50] people per 100 m^2", false;
+  if (query_crowdedness > 50) return *why = "query_crowdedness must be at most 50 people per 100 m^2", false;
   if (image_format != "jpg" && image_format != "png") return *why = "image_format must be jpg or png", false;
   if (layout != "splits" && layout != "single") return *why = "layout must be splits or single", false;
   if (texture_size < 32 || texture_size > 4096) return *why = "texture_size must be in [32, 4096]", false;
@@ -390,7 +391,9 @@ DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int thr
     const fs::path root = folder.empty() ? out : out / folder;
     const fs::path data = root / "sensors" / "records_data";
     const Trajectory& traj = w.trajectory;
-    const Crowd crowd = MakeCrowd(spec, o.crowdedness, Mix(plan.seed, 2));
+    const double density =
+        plan.split != "mapping" && o.query_crowdedness >= 0 ? o.query_crowdedness : o.crowdedness;
+    const Crowd crowd = MakeCrowd(spec, density, Mix(plan.seed, 2));
     const World world(scene, crowd, &textures, plan.day);
     SequenceSummary ss;
     ss.plan = plan;

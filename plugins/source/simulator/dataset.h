@@ -29,6 +29,7 @@ struct SimOptions {
   double mapping_duration_s = 8;
   double query_duration_s = 4;
   double crowdedness = 2.0;         // people per 100 m^2 of floor
+  double query_crowdedness = -1;    // validation and test sequences only; < 0: crowdedness
   bool lidar = true;                // write LiDAR scans
   bool cameras = true;              // render and write camera images (false: LiDAR + wheels only)
   bool masks = true;                // write person masks

@@ -11,6 +11,7 @@ struct SimulatorOptions {
   std::string preset = "small";    // Size of the recording: tiny | small | large.
   int64_t seed = 0;                // Same seed, same dataset.
   double crowdedness = -1;         // People per 100 m^2 of floor; -1: the preset's.
+  double query_crowdedness = -1;   // The same for the query sequences only; -1: as crowdedness.
   double scale = 0;                // Image resolution factor (1 = full sensor); 0: the preset's.
   double duration_scale = 1;       // Multiplies every sequence's duration.
   int mapping_sequences = 0;       // 0: the preset's.
@@ -29,6 +30,9 @@ struct SimulatorOptions {
         .Choices({"tiny", "small", "large"});
     s.Add("seed", &SimulatorOptions::seed, "Random seed of the floor, routes, people and noise").Min(0);
     s.Add("crowdedness", &SimulatorOptions::crowdedness, "People per 100 m^2 of floor (-1: preset's)")
+        .Range(-1, 50);
+    s.Add("query_crowdedness", &SimulatorOptions::query_crowdedness,
+          "People per 100 m^2 in the query sequences only, the mapping ones unchanged (-1: as crowdedness)")
         .Range(-1, 50);
     s.Add("scale", &SimulatorOptions::scale, "Image resolution factor of every camera (0: preset's)")
         .Range(0, 1);
@@ -58,6 +62,7 @@ struct SimulatorOptions {
     SimOptions o = PresetOptions(preset);
     o.seed = static_cast<uint64_t>(seed);
     if (crowdedness >= 0) o.crowdedness = crowdedness;
+    o.query_crowdedness = query_crowdedness;
     if (scale > 0) o.rig.image_scale = scale;
     o.mapping_duration_s *= duration_scale;
     o.query_duration_s *= duration_scale;

@@ -1,0 +1,90 @@
+// Absolute pose regression (PoseNet, Kendall et al., ICCV 2015) and
+// scene-coordinate regression with expert selection (ESAC, Brachmann and
+// Rother, ICCV 2019) on ONNX networks run by OpenCV dnn. The networks' contracts
+// are in ../README.md; the training recipes in ../train/.
+//
+// PoseNet: image -> camera centre c and rotation R_world_camera (quaternion),
+// so T_camera_world = [R^T | -R^T c].
+// ESAC: a gating network gives p(expert | image); M hypotheses are split over
+// the experts in proportion to p (paper section 3, "ESAC"); each chosen
+// expert's scene coordinates give 2D-3D correspondences (one per output cell,
+// at the cell centre) for the LO-RANSAC P3P + refinement of localizer/pnp with
+// its share of the hypotheses; the expert whose pose has the most inliers wins
+// (the paper picks the hypothesis of highest soft inlier count over all
+// experts: the same choice at the level of whole experts).
+#ifndef LOCFORGE_PLUGINS_REGRESSION_SCENE_REGRESSION_H_
+#define LOCFORGE_PLUGINS_REGRESSION_SCENE_REGRESSION_H_
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "absolute_pose.h"
+#include "locforge/camera.h"
+#include "locforge/params.h"
+#include "locforge/pose.h"
+
+namespace locforge::regression {
+
+// The input of both families: the image resized to width x height (aspect
+// not kept), channels RGB, value = (pixel - mean) / std with pixel in [0, 255].
+struct InputOptions {
+  std::string input = "image";  // Input tensor name (1x3xHxW float32).
+  int width = 224;              // Network input width (PoseNet's crop).
+  int height = 224;             // Network input height.
+  std::vector<double> mean = {123.675, 116.28, 103.53};  // Per channel (RGB), ImageNet.
+  std::vector<double> std = {58.395, 57.12, 57.375};     // Per channel (RGB), ImageNet.
+  bool Check(std::string* why) const;
+};
+
+template <typename Options>
+void DeclareInputOptions(ParamSchema<Options>& s) {
+  s.template Add<std::string>("input", &InputOptions::input, "input tensor name (1x3xHxW float32)");
+  s.template Add<int>("width", &InputOptions::width,
+                      "network input width (the image is resized, aspect not kept)").Range(8, 4096);
+  s.template Add<int>("height", &InputOptions::height, "network input height").Range(8, 4096);
+  s.template Add<std::vector<double>>("mean", &InputOptions::mean,
+                                      "per-channel mean (RGB, pixels in [0, 255]) subtracted");
+  s.template Add<std::vector<double>>("std", &InputOptions::std, "per-channel divisor (RGB) after the mean");
+}
+
+// 8-bit RGB image -> 1x3xHxW float blob of `o`.
+cv::Mat RegressionBlob(const cv::Mat& rgb, const InputOptions& o);
+
+// T_camera_world from a regressed camera centre (world, metres) and rotation
+// world_from_camera as (w, x, y, z) of any norm. Returns false (and why) when
+// the numbers are not finite or the quaternion is ~0.
+bool PoseFromRegression(const float position[3], const float orientation[4], Pose* camera_from_world,
+                        std::string* why);
+
+// One correspondence per cell of a 1x3xhxw scene-coordinate map regressed
+// from an image of image_width x image_height: the cell (i, j) stands for
+// the pixel at its centre ((j + 0.5) W / w, (i + 0.5) H / h) (SDK convention:
+// first pixel centre at 0.5). Non-finite coordinates are skipped.
+std::vector<localization::Correspondence> SceneCoordinateCorrespondences(const cv::Mat& coordinates,
+                                                                         const Camera& camera);
+
+// Softmax of gating logits.
+std::vector<double> Softmax(const std::vector<float>& logits);
+
+// Splits `hypotheses` over the experts in proportion to `probabilities`
+// (largest remainders, ties to the lower index); sums to `hypotheses`.
+std::vector<int> HypothesisBudget(const std::vector<double>& probabilities, int hypotheses);
+
+struct ExpertResult {
+  int expert = -1;
+  double probability = 0;  // the gating network's p(expert | image)
+  int hypotheses = 0;
+  int correspondences = 0;
+  localization::AbsolutePoseResult pose;
+};
+
+// The ESAC choice among the experts' results: most inliers among the
+// successful ones, ties to the more probable expert (two self-consistent
+// scenes explain an image equally well; the gate knows which one it shows).
+// Returns -1 when none succeeded.
+int BestExpert(const std::vector<ExpertResult>& results);
+
+}  // namespace locforge::regression
+
+#endif  // LOCFORGE_PLUGINS_REGRESSION_SCENE_REGRESSION_H_
