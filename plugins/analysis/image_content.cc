@@ -50,6 +50,8 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
                        {"recording", "kapture.dataset",
                         "a simulator recording instead of the masks parameter: its truth/masks (image paths of the "
                         "query kapture relative to the recording, e.g. validation/...)",
+                        LF_PORT_OPTIONAL},
+                       {"masks", "person.masks", "estimated person masks instead (analysis/person_segmentation)",
                         LF_PORT_OPTIONAL}},
                       {{"content", "report", "content.csv (image, device_id, low_frequency_score, low_frequency, "
                                              "crowdedness_percent, crowded), content.md"}}};
@@ -87,11 +89,14 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     WriteFileAtomic(ItemFile(ctx.output_dir(), image), line.str());
   }
 
-  // The masks parameter, or the recording input's truth/masks.
+  // The masks parameter, the recording input's truth/masks or the masks input's masks/: one of them.
   fs::path MasksFolder(RunContext& ctx) const {
+    const int given = !options().masks.empty() + ctx.HasInput("recording") + ctx.HasInput("masks");
+    if (given > 1)
+      throw ParamError("analysis/image_content: give one source of person masks (the masks parameter, the "
+                       "recording input or the masks input)");
+    if (ctx.HasInput("masks")) return ctx.Input("masks") / "masks";
     if (!ctx.HasInput("recording")) return options().masks;
-    if (!options().masks.empty())
-      throw ParamError("analysis/image_content: the recording input replaces the masks parameter; keep one");
     const fs::path masks = ctx.Input("recording") / "truth" / "masks";
     if (!fs::is_directory(masks))
       throw InputError(masks.string(), 0, "recording", "no person masks (simulate with masks: true)");

@@ -5,9 +5,11 @@ namespace locforge::analysis {
 LOCFORGE_DECLARE_STAGE(AddImageContent);
 LOCFORGE_DECLARE_STAGE(AddContentTables);
 LOCFORGE_DECLARE_STAGE(AddCrowdSweep);
+LOCFORGE_DECLARE_STAGE(AddPersonSegmentation);
 }  // namespace locforge::analysis
 
-LOCFORGE_PLUGIN("analysis", "1.0.0", "Analyses of localization results by image content: low-frequency score, crowdedness, the paper's Tables 5 and 6, recall vs crowd density",
+LOCFORGE_PLUGIN("analysis", "1.0.0", "Analyses of localization results by image content: low-frequency score, crowdedness (truth or person segmentation), the paper's Tables 5 and 6, recall vs crowd density",
                 locforge::Exported<locforge::analysis::AddImageContent>,
                 locforge::Exported<locforge::analysis::AddContentTables>,
-                locforge::Exported<locforge::analysis::AddCrowdSweep>)
+                locforge::Exported<locforge::analysis::AddCrowdSweep>,
+                locforge::Exported<locforge::analysis::AddPersonSegmentation>)

@@ -77,7 +77,7 @@ class EsacLocalizer : public RegressionStage<EsacOptions> {
     Camera camera;
     const cv::Mat rgb = QueryImage(ctx, image, &camera);
     const auto start = std::chrono::steady_clock::now();
-    const cv::Mat blob = RegressionBlob(rgb, options());
+    const cv::Mat blob = learned::InputBlob(rgb, options());
     std::vector<double> p = {1.0};
     if (experts_ > 1) {
       cv::dnn::Net& gating = learned::ThreadNet((fs::path(options().model_dir) / "gating.onnx").string());

@@ -47,7 +47,7 @@ class PoseNetLocalizer : public RegressionStage<PoseNetOptions> {
     const cv::Mat rgb = QueryImage(ctx, image, &camera);
     const auto start = std::chrono::steady_clock::now();
     cv::dnn::Net& net = learned::ThreadNet(options().model);
-    net.setInput(RegressionBlob(rgb, options()), options().input);
+    net.setInput(learned::InputBlob(rgb, options()), options().input);
     std::vector<cv::Mat> outs;
     net.forward(outs, std::vector<cv::String>{options().position_output, options().orientation_output});
     if (outs[0].total() != 3 || outs[1].total() != 4)

@@ -20,36 +20,15 @@
 #include <vector>
 
 #include "absolute_pose.h"
+#include "image_input.h"
 #include "locforge/camera.h"
 #include "locforge/params.h"
 #include "locforge/pose.h"
 
 namespace locforge::regression {
 
-// The input of both families: the image resized to width x height (aspect
-// not kept), channels RGB, value = (pixel - mean) / std with pixel in [0, 255].
-struct InputOptions {
-  std::string input = "image";  // Input tensor name (1x3xHxW float32).
-  int width = 224;              // Network input width (PoseNet's crop).
-  int height = 224;             // Network input height.
-  std::vector<double> mean = {123.675, 116.28, 103.53};  // Per channel (RGB), ImageNet.
-  std::vector<double> std = {58.395, 57.12, 57.375};     // Per channel (RGB), ImageNet.
-  bool Check(std::string* why) const;
-};
-
-template <typename Options>
-void DeclareInputOptions(ParamSchema<Options>& s) {
-  s.template Add<std::string>("input", &InputOptions::input, "input tensor name (1x3xHxW float32)");
-  s.template Add<int>("width", &InputOptions::width,
-                      "network input width (the image is resized, aspect not kept)").Range(8, 4096);
-  s.template Add<int>("height", &InputOptions::height, "network input height").Range(8, 4096);
-  s.template Add<std::vector<double>>("mean", &InputOptions::mean,
-                                      "per-channel mean (RGB, pixels in [0, 255]) subtracted");
-  s.template Add<std::vector<double>>("std", &InputOptions::std, "per-channel divisor (RGB) after the mean");
-}
-
-// 8-bit RGB image -> 1x3xHxW float blob of `o`.
-cv::Mat RegressionBlob(const cv::Mat& rgb, const InputOptions& o);
+using learned::DeclareInputOptions;
+using learned::InputOptions;
 
 // T_camera_world from a regressed camera centre (world, metres) and rotation
 // world_from_camera as (w, x, y, z) of any norm. Returns false (and why) when

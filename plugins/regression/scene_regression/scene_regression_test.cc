@@ -131,7 +131,7 @@ TEST(SceneRegression, BlobResizesAndNormalisesRgb) {
   o.height = 16;
   std::string why;
   ASSERT_TRUE(o.Check(&why)) << why;
-  const cv::Mat blob = RegressionBlob(rgb, o);
+  const cv::Mat blob = learned::InputBlob(rgb, o);
   ASSERT_EQ(blob.dims, 4);
   EXPECT_EQ(blob.size[2], 16);
   EXPECT_EQ(blob.size[3], 32);
@@ -203,7 +203,7 @@ TEST_F(RegressionStages, PoseNetOutputsMatchNumpyAndConstantsComeBackExactly) {
   o.height = 32;
   cv::Mat bgr = cv::imread((query_ / "sensors/records_data/q/query.png").string()), rgb;
   cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  const cv::Mat blob = RegressionBlob(rgb, o);
+  const cv::Mat blob = learned::InputBlob(rgb, o);
   std::ofstream(dir_ / "in.f32", std::ios::binary)
       .write(reinterpret_cast<const char*>(blob.ptr<float>()), std::streamsize(blob.total() * 4));
   Python("posenet_forward " + dir_.string() + " " + (dir_ / "in.f32").string() + " 32 40 " + (dir_ / "out.f32").string());
