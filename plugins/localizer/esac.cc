@@ -1,6 +1,6 @@
 // localizer/esac: scene-coordinate regression with a gating network over
 // experts (ESAC), 2D-3D hypotheses through localizer/pnp's LO-RANSAC P3P +
-// refinement (scene_regression.h; contract in README.md).
+// refinement (scene_regression.h; contract in scene_regression/README.md).
 #include <chrono>
 #include <cstdio>
 

@@ -1,6 +1,6 @@
 // localizer/posenet and localizer/esac: the pre/post-processing and the ESAC
 // hypothesis split on known answers, then both stages end to end on small
-// generated ONNX models (../testdata/regression_models.py) whose outputs are
+// generated ONNX models (testdata_models.py) whose outputs are
 // known: a PoseNet head checked against numpy, constant poses and scene
 // coordinates of a known camera, and a gating network that picks the expert.
 #include "scene_regression.h"
@@ -154,7 +154,7 @@ class RegressionStages : public ::testing::Test {
       GTEST_SKIP() << "no python3 with onnx + numpy: install python3-onnx and python3-numpy";
     }
     dir_ = locforge::testing::MakeTempDir("regression_stages");
-    ASSERT_TRUE(registry_.LoadFile(LOCFORGE_REGRESSION_PLUGIN_FILE));
+    ASSERT_TRUE(registry_.LoadFile(LOCFORGE_LOCALIZER_PLUGIN_FILE));
     // A query kapture: one 640x480 image of camera `cam`.
     query_ = dir_ / "query";
     fs::create_directories(query_ / "sensors/records_data");

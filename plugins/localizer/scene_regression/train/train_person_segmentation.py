@@ -104,7 +104,7 @@ def main():
     atomic_export(PersonSegmentation.Exported(net), torch.zeros(1, 3, a.height, a.width), onnx_file, ["person"])
     total = time.time() - start
     atomic_json(os.path.join(a.out, "training.json"), {
-        "recipe": "plugins/regression/train/train_person_segmentation.py", "argv": sys.argv[1:],
+        "recipe": "plugins/localizer/scene_regression/train/train_person_segmentation.py", "argv": sys.argv[1:],
         "recording": os.path.abspath(a.recording), "images": len(X), "person_cell_share": person_share,
         "width": a.width, "height": a.height, "iterations": a.iterations, "batch": a.batch, "lr": a.lr,
         "threads": a.threads, "seed": a.seed, "final_loss": loss_value, "train_cell_iou": iou,

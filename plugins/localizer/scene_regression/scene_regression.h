@@ -1,7 +1,7 @@
 // Absolute pose regression (PoseNet, Kendall et al., ICCV 2015) and
 // scene-coordinate regression with expert selection (ESAC, Brachmann and
 // Rother, ICCV 2019) on ONNX networks run by OpenCV dnn. The networks' contracts
-// are in ../README.md; the training recipes in ../train/.
+// are in README.md beside this file; the training recipes in train/.
 //
 // PoseNet: image -> camera centre c and rotation R_world_camera (quaternion),
 // so T_camera_world = [R^T | -R^T c].

@@ -100,8 +100,8 @@ def main():
     ap.add_argument("--out", required=True, help="output folder")
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--height", type=int, default=128)
-    ap.add_argument("--iterations", type=int, default=6000, help="training iterations of the single expert")
-    ap.add_argument("--expert-iterations", type=int, default=1500, help="iterations per expert when experts > 1")
+    ap.add_argument("--iterations", type=int, default=4000, help="training iterations of the single expert")
+    ap.add_argument("--expert-iterations", type=int, default=1000, help="iterations per expert when experts > 1")
     ap.add_argument("--gating-epochs", type=int, default=40)
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--lr", type=float, default=1e-3)
@@ -199,7 +199,7 @@ def main():
 
     total = time.time() - start
     record = {
-        "recipe": "plugins/regression/train/train_esac.py", "argv": sys.argv[1:],
+        "recipe": "plugins/localizer/scene_regression/train/train_esac.py", "argv": sys.argv[1:],
         "map": os.path.abspath(a.map), "depth": os.path.abspath(a.depth), "images": len(X),
         "images_without_depth": skipped, "cells_with_target": valid_share, "experts": experts, "gating": gating,
         "width": a.width, "height": a.height, "batch": a.batch, "lr": a.lr, "threads": a.threads, "seed": a.seed,

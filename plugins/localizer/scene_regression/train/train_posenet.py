@@ -102,7 +102,7 @@ def main():
     onnx_file = os.path.join(a.out, "posenet.onnx")
     atomic_export(exported, torch.zeros(1, 3, a.height, a.width), onnx_file, ["position", "orientation"])
     record = {
-        "recipe": "plugins/regression/train/train_posenet.py", "argv": sys.argv[1:],
+        "recipe": "plugins/localizer/scene_regression/train/train_posenet.py", "argv": sys.argv[1:],
         "map": os.path.abspath(a.map), "images": len(images), "width": a.width, "height": a.height,
         "epochs": a.epochs, "batch": a.batch, "lr": a.lr, "threads": a.threads, "seed": a.seed,
         "position_mean": mean.tolist(), "position_scale": scale,

@@ -10,7 +10,7 @@ localizer/esac (python3-onnx + python3-numpy; no training framework).
   gating FILE l0 l1 ...                  outputs these logits whatever the image
 
 Inputs are named `image` (1x3xHxW float32, dynamic H, W); outputs `position`,
-`orientation`, `coordinates`, `logits` (the contracts of plugins/regression/README.md).
+`orientation`, `coordinates`, `logits` (the contracts of plugins/localizer/scene_regression/README.md).
 """
 import sys
 

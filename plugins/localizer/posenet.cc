@@ -1,5 +1,5 @@
 // localizer/posenet: absolute pose regression per query image (ONNX model run
-// by OpenCV dnn; contract in README.md).
+// by OpenCV dnn; contract in scene_regression/README.md).
 #include <chrono>
 
 #include "regression_stage.h"
@@ -14,7 +14,7 @@ struct PoseNetOptions : InputOptions {
   std::string orientation_output = "orientation";  // 1x4: R_world_camera as (w, x, y, z).
 
   static void Declare(ParamSchema<PoseNetOptions>& s) {
-    s.Add("model", &PoseNetOptions::model, "the network (.onnx file, contract in plugins/regression/README.md)")
+    s.Add("model", &PoseNetOptions::model, "the network (.onnx file, contract in plugins/localizer/scene_regression/README.md)")
         .Path().Required();
     DeclareInputOptions(s);
     s.Add("position_output", &PoseNetOptions::position_output,
