@@ -13,6 +13,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <regex>
 #include <sstream>
 #include <thread>
 
@@ -278,7 +279,8 @@ TEST_F(Cli, ValidateAcceptsTheExamples) {
 }
 
 // configs/ holds runnable graphs only: each validates against the built
-// plugins (required variables given), and a required variable left out says
+// plugins (every required variable given: an existing folder for "DIR: ...",
+// an existing file for "FILE: ..."), and a required variable left out says
 // how to give it before anything runs.
 TEST_F(Cli, EveryShippedGraphValidatesAndRequiredVariablesSayWhatToDo) {
   const fs::path shared = locforge::testing::SharedDir();
@@ -289,25 +291,35 @@ TEST_F(Cli, EveryShippedGraphValidatesAndRequiredVariablesSayWhatToDo) {
   const fs::path configs = fs::path(LOCFORGE_SOURCE_DIR) / "configs";
   const fs::path recording = dir_ / "recording";
   fs::create_directories(recording);
-  int graphs = 0;
+  const fs::path file = dir_ / "a_file";
+  Write("a_file", "x");
+  const std::regex required_var(R"re(^\s+(\w+): !required "(DIR|FILE): ([^"]*)")re");
+  int graphs = 0, with_required = 0;
   for (const auto& e : fs::recursive_directory_iterator(configs)) {
     if (e.path().extension() != ".yaml") continue;
     ++graphs;
-    const std::string text = ReadAll(e.path());
-    const bool needs_dataset = text.find("dataset: !required") != std::string::npos;
-    const Result r = Run("validate '" + e.path().string() + "'" +
-                         (needs_dataset ? " --set dataset=" + recording.string() : std::string()));
+    std::istringstream text(ReadAll(e.path()));
+    std::string sets;
+    std::vector<std::string> messages;
+    for (std::string line; std::getline(text, line);) {
+      std::smatch m;
+      if (!std::regex_search(line, m, required_var)) continue;
+      sets += " --set " + m[1].str() + "=" + (m[2] == "DIR" ? recording : file).string();
+      messages.push_back("error: variable '" + m[1].str() + "' is required (" + m[2].str() + ": " + m[3].str() +
+                         "): give it with --set " + m[1].str() + "=" + m[2].str());
+    }
+    const Result r = Run("validate '" + e.path().string() + "'" + sets);
     EXPECT_EQ(r.rc, 0) << e.path() << ": " << r.err;
-    if (needs_dataset) {
+    if (!messages.empty()) {
+      ++with_required;
       const Result missing = Run("validate '" + e.path().string() + "'");
       EXPECT_EQ(missing.rc, 2) << e.path();
-      EXPECT_NE(missing.err.find("error: variable 'dataset' is required (DIR: a kapture recording): give it with "
-                                 "--set dataset=DIR"),
-                std::string::npos)
-          << e.path() << ": " << missing.err;
+      for (const std::string& message : messages)
+        EXPECT_NE(missing.err.find(message), std::string::npos) << e.path() << ": " << missing.err;
     }
   }
   EXPECT_GE(graphs, 15);
+  EXPECT_GE(with_required, 5);
 }
 
 // The report of a run: one HTML file naming the CSV it shows, the run record

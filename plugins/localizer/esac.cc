@@ -61,19 +61,15 @@ class EsacLocalizer : public RegressionStage<EsacOptions> {
     meta.version = "1.0.0";
     return meta;
   }
-  explicit EsacLocalizer(EsacOptions o) : RegressionStage(std::move(o)) {
-    const std::string& dir = options().model_dir;
-    if (!fs::is_directory(dir)) throw InputError(dir, 0, "model_dir", "not a folder");
-    while (fs::exists(ExpertFile(dir, experts_))) ++experts_;
-    if (experts_ == 0) throw InputError(dir, 0, "model_dir", "no expert_000.onnx");
-    if (options().experts != 0 && options().experts != experts_)
-      throw InputError(dir, 0, "experts", std::to_string(options().experts) + " experts expected, " +
-                                              std::to_string(experts_) + " found (expert_000.onnx ...)");
-    if (experts_ > 1 && !fs::exists(fs::path(dir) / "gating.onnx"))
-      throw InputError(dir, 0, "model_dir", std::to_string(experts_) + " experts but no gating.onnx");
+  using RegressionStage::RegressionStage;
+
+  std::vector<std::string> ListItems(RunContext& ctx) override {
+    CountExperts();
+    return RegressionStage::ListItems(ctx);
   }
 
   void ProcessItem(RunContext& ctx, const std::string& image) override {
+    CountExperts();
     Camera camera;
     const cv::Mat rgb = QueryImage(ctx, image, &camera);
     const auto start = std::chrono::steady_clock::now();
@@ -144,6 +140,25 @@ class EsacLocalizer : public RegressionStage<EsacOptions> {
   }
 
  private:
+  // The experts of model_dir, checked against `experts` and the gate, once
+  // (at run time: a graph validates before the models are trained).
+  void CountExperts() {
+    std::lock_guard<std::mutex> lock(experts_mutex_);
+    if (experts_ > 0) return;
+    const std::string& dir = options().model_dir;
+    if (!fs::is_directory(dir)) throw InputError(dir, 0, "model_dir", "not a folder");
+    int found = 0;
+    while (fs::exists(ExpertFile(dir, found))) ++found;
+    if (found == 0) throw InputError(dir, 0, "model_dir", "no expert_000.onnx");
+    if (options().experts != 0 && options().experts != found)
+      throw InputError(dir, 0, "experts", std::to_string(options().experts) + " experts expected, " +
+                                              std::to_string(found) + " found (expert_000.onnx ...)");
+    if (found > 1 && !fs::exists(fs::path(dir) / "gating.onnx"))
+      throw InputError(dir, 0, "model_dir", std::to_string(found) + " experts but no gating.onnx");
+    experts_ = found;
+  }
+
+  std::mutex experts_mutex_;
   int experts_ = 0;
 };
 
