@@ -76,14 +76,7 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     if (masks.empty()) {
       line << -1;
     } else {
-      const fs::path mask_file = masks / fs::path(image).replace_extension(".png");
-      if (!fs::exists(mask_file))
-        throw InputError(mask_file.string(), 0, "masks", "no person mask for image " + image);
-      const cv::Mat mask = cv::imread(mask_file.string(), cv::IMREAD_GRAYSCALE);
-      if (mask.empty()) throw InputError(mask_file.string(), 0, "masks", "cannot be decoded as an image");
-      if (mask.size() != gray.size())
-        throw InputError(mask_file.string(), 0, "masks", "mask size differs from the image's (" + image + ")");
-      line << CrowdednessPercent(mask);
+      line << CrowdednessPercent(ReadPersonMask(masks, image, gray.size(), "masks"));
     }
     line << '\n';
     WriteFileAtomic(ItemFile(ctx.output_dir(), image), line.str());

@@ -35,10 +35,6 @@ struct PersonSegmentationOptions : learned::InputOptions {
   bool Check(std::string* why) const { return InputOptions::Check(why); }
 };
 
-fs::path MaskFile(const fs::path& root, const std::string& image) {
-  return SafeJoin(root, fs::path(image).replace_extension(".png").generic_string());
-}
-
 class PersonSegmentationStage : public PerItemStage<PersonSegmentationOptions> {
  public:
   static StageMeta Meta() {
@@ -70,16 +66,12 @@ class PersonSegmentationStage : public PerItemStage<PersonSegmentationOptions> {
     const cv::Mat mask = PersonMask(probability, rgb.size(), options().threshold);
     std::vector<uchar> png;
     cv::imencode(".png", mask, png);
-    WriteFileAtomic(MaskFile(ctx.output_dir() / "masks", image),
+    WriteFileAtomic(PersonMaskFile(ctx.output_dir() / "masks", image),
                     std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
     std::ostringstream line;
     line.precision(17);
     if (ctx.HasInput("recording")) {
-      const fs::path truth_file = MaskFile(ctx.Input("recording") / "truth" / "masks", image);
-      const cv::Mat truth = cv::imread(truth_file.string(), cv::IMREAD_GRAYSCALE);
-      if (truth.empty()) throw InputError(truth_file.string(), 0, "recording", "no true person mask for " + image);
-      if (truth.size() != mask.size())
-        throw InputError(truth_file.string(), 0, "recording", "true mask size differs from the image's");
+      const cv::Mat truth = ReadPersonMask(ctx.Input("recording") / "truth" / "masks", image, mask.size(), "recording");
       const MaskAgreement a = CompareMasks(mask, truth);
       line << a.estimated_percent << ' ' << a.reference_percent << ' ' << a.iou << '\n';
     } else {
@@ -92,6 +84,7 @@ class PersonSegmentationStage : public PerItemStage<PersonSegmentationOptions> {
     const kp::Kapture dataset(ctx.Input("images"));
     evaluation::Table table;
     table.header = {"image", "estimated_crowdedness_percent", "true_crowdedness_percent", "iou"};
+    const double kCrowded = ContentThresholds().crowded_at_least;  // the paper's 20 %
     double iou_sum = 0, error_sum = 0;
     size_t compared = 0, agree_crowded = 0;
     for (const std::string& image : dataset.CameraImages()) {
@@ -105,7 +98,7 @@ class PersonSegmentationStage : public PerItemStage<PersonSegmentationOptions> {
         ++compared;
         iou_sum += iou;
         error_sum += std::abs(estimated - reference);
-        agree_crowded += (estimated >= 20) == (reference >= 20);
+        agree_crowded += (estimated >= kCrowded) == (reference >= kCrowded);
       }
     }
     WriteFileAtomic(ctx.output_dir() / "segmentation.csv", evaluation::ToCsv(table));
@@ -115,7 +108,7 @@ class PersonSegmentationStage : public PerItemStage<PersonSegmentationOptions> {
        << options().threshold << "\n\n";
     if (compared > 0) {
       md << "Against the true masks (" << compared << " images): mean IoU " << iou_sum / compared
-         << ", mean |crowdedness error| " << error_sum / compared << " percentage points, crowded (>= 20 %) "
+         << ", mean |crowdedness error| " << error_sum / compared << " percentage points, crowded (>= " << kCrowded << " %) "
          << "classification agrees on " << 100.0 * agree_crowded / compared << " %.\n";
     }
     WriteFileAtomic(ctx.output_dir() / "segmentation.md", md.str());

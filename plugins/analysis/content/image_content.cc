@@ -1,6 +1,7 @@
 #include "image_content.h"
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -55,6 +56,20 @@ double CrowdednessPercent(const cv::Mat& mask) {
   if (mask.empty() || mask.channels() != 1 || mask.depth() != CV_8U)
     throw std::invalid_argument("CrowdednessPercent: needs a one-channel 8-bit mask");
   return 100.0 * cv::countNonZero(mask > 127) / static_cast<double>(mask.total());
+}
+
+fs::path PersonMaskFile(const fs::path& folder, const std::string& image) {
+  return SafeJoin(folder, fs::path(image).replace_extension(".png").generic_string());
+}
+
+cv::Mat ReadPersonMask(const fs::path& folder, const std::string& image, cv::Size size, const std::string& field) {
+  const fs::path file = PersonMaskFile(folder, image);
+  if (!fs::exists(file)) throw InputError(file.string(), 0, field, "no person mask for image " + image);
+  const cv::Mat mask = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
+  if (mask.empty()) throw InputError(file.string(), 0, field, "cannot be decoded as an image");
+  if (mask.size() != size)
+    throw InputError(file.string(), 0, field, "mask size differs from the image's (" + image + ")");
+  return mask;
 }
 
 std::string RecallCell(const std::vector<QueryError>& errors, const std::vector<Threshold>& thresholds) {

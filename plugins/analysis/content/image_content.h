@@ -47,6 +47,16 @@ struct ImageContent {
   bool low_frequency = false;       // as classified by analysis/image_content's thresholds
   bool crowded = false;
 };
+// A person mask of a masks folder (the simulator's truth/masks layout, and
+// analysis/person_segmentation's masks/): <folder>/<image path with .png>,
+// kept inside the folder.
+std::filesystem::path PersonMaskFile(const std::filesystem::path& folder, const std::string& image);
+
+// Reads that mask as 8-bit grey; InputError naming the file and `field` when
+// it is missing, cannot be decoded, or its size is not `size` (the image's).
+cv::Mat ReadPersonMask(const std::filesystem::path& folder, const std::string& image, cv::Size size,
+                       const std::string& field);
+
 // Classifies a query by `thresholds` (the one place they are applied).
 ImageContent Classify(std::string image, double low_frequency_score, double crowdedness_percent,
                       const ContentThresholds& thresholds);
