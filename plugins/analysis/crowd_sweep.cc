@@ -2,6 +2,8 @@
 // simulated at several crowd densities (configs/benchmark/crowd_sweep.yaml):
 // a table per set, a table of all queries binned by their own crowdedness,
 // and the plot.
+#include <algorithm>
+
 #include "crowd_sweep.h"
 #include "locforge/fs.h"
 #include "locforge/plugin.h"
@@ -37,6 +39,13 @@ struct CrowdSweepOptions {
   }
 };
 
+// "a", "a; b" ("unnamed masks" for a content report of before image_content 1.1.0).
+std::string JoinSources(const std::vector<std::string>& sources) {
+  std::string joined;
+  for (const std::string& source : sources) joined += (joined.empty() ? "" : "; ") + (source.empty() ? "unnamed masks" : source);
+  return joined;
+}
+
 class CrowdSweepStage : public Stage<CrowdSweepOptions> {
  public:
   static StageMeta Meta() {
@@ -49,7 +58,7 @@ class CrowdSweepStage : public Stage<CrowdSweepOptions> {
                         "eval/localization reports, set-major: the K methods of set 1, then of set 2, ...",
                         LF_PORT_MULTIPLE}},
                       {{"sweep", "report", "sweep.{md,csv,tex}, binned.{md,csv}, recall_vs_crowdedness.{svg,png}"}}};
-    meta.version = "1.0.0";
+    meta.version = "1.1.0";
     return meta;
   }
   using Stage::Stage;
@@ -65,6 +74,11 @@ class CrowdSweepStage : public Stage<CrowdSweepOptions> {
                        " values for " + std::to_string(contents.size()) + " content inputs");
     const size_t k = reports.size() / contents.size();
     std::vector<SweepSet> sets(contents.size());
+    std::vector<std::string> sources;  // of the crowdedness, distinct, in the sets' order
+    for (const fs::path& content : contents) {
+      const std::string source = ReadCrowdednessSource(content);
+      if (std::find(sources.begin(), sources.end(), source) == sources.end()) sources.push_back(source);
+    }
     for (size_t s = 0; s < sets.size(); ++s) {
       sets[s].setting = o.densities[s];
       sets[s].content = ReadContentReport(contents[s]);
@@ -74,7 +88,8 @@ class CrowdSweepStage : public Stage<CrowdSweepOptions> {
     std::string threshold_text;
     const std::vector<evaluation::Threshold> thresholds = MakeThresholds(o.positions_m, o.angles_deg, &threshold_text);
     const std::string note = "Recall (%) at (" + threshold_text + "); unlocalized queries count as failures. "
-                             "Crowdedness: % of a query's pixels on people (the simulator's person masks).\n\n";
+                             "Crowdedness: % of a query's pixels on people, from " +
+                             JoinSources(sources) + ".\n\n";
     const fs::path out = ctx.output_dir();
     const Table sweep = SweepTable(sets, thresholds);
     WriteFileAtomic(out / "sweep.md", "# Recall vs crowd density (one map, queries re-simulated)\n\n" + note +

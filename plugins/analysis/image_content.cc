@@ -54,8 +54,8 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
                        {"masks", "person.masks", "estimated person masks instead (analysis/person_segmentation)",
                         LF_PORT_OPTIONAL}},
                       {{"content", "report", "content.csv (image, device_id, low_frequency_score, low_frequency, "
-                                             "crowdedness_percent, crowded), content.md"}}};
-    meta.version = "1.0.0";
+                                             "crowdedness_percent, crowded), content.md, crowdedness_source.txt"}}};
+    meta.version = "1.1.1";
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -94,6 +94,14 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     if (!fs::is_directory(masks))
       throw InputError(masks.string(), 0, "recording", "no person masks (simulate with masks: true)");
     return masks;
+  }
+
+  // Where the crowdedness came from, for the reports built on this one
+  // (analysis/crowd_sweep): the kind of masks, and their folder.
+  std::string MasksSource(RunContext& ctx) const {
+    if (ctx.HasInput("masks")) return "person masks estimated by analysis/person_segmentation";
+    if (ctx.HasInput("recording")) return "the simulator's true person masks";
+    return options().masks.empty() ? "" : "the person masks of a folder";
   }
 
   void Finalize(RunContext& ctx) override {
@@ -137,6 +145,9 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
       md << "; " << crowded << " of " << with_mask << " crowded (>= " << FormatDouble(o.crowded_at_least)
          << " % person pixels)";
     md << ".\n";
+    const std::string source = MasksSource(ctx);
+    if (!source.empty()) md << "\nCrowdedness from " << source << " (" << MasksFolder(ctx).string() << ").\n";
+    WriteFileAtomic(ctx.output_dir() / kCrowdednessSourceFile, source + "\n");
     WriteFileAtomic(ctx.output_dir() / "content.csv", evaluation::ToCsv(table));
     WriteFileAtomic(ctx.output_dir() / "content.md", md.str());
     ctx.Info(md.str());

@@ -220,6 +220,14 @@ std::vector<ImageContent> ReadContentReport(const std::filesystem::path& folder)
   return ParseContent(evaluation::FromCsv(ReadFile(file), file.string()), file.string());
 }
 
+std::string ReadCrowdednessSource(const std::filesystem::path& folder) {
+  const fs::path file = folder / kCrowdednessSourceFile;
+  if (!fs::exists(file)) return "";
+  std::string text = ReadFile(file);
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+  return text;
+}
+
 MethodErrors ReadMethodReport(const std::filesystem::path& report) {
   const fs::path per_query = report / "per_query.csv";
   MethodErrors m;

@@ -96,6 +96,10 @@ std::vector<evaluation::Threshold> MakeThresholds(const std::vector<double>& pos
 // The same, read from an analysis/image_content output folder (content.csv)
 // and an eval/localization report folder (per_query.csv + the method name).
 std::vector<ImageContent> ReadContentReport(const std::filesystem::path& folder);
+// analysis/image_content also names the source of its person masks (one line,
+// empty without masks), so that tables built on it say what they measured.
+inline constexpr const char* kCrowdednessSourceFile = "crowdedness_source.txt";
+std::string ReadCrowdednessSource(const std::filesystem::path& folder);  // "": no file, or no masks
 MethodErrors ReadMethodReport(const std::filesystem::path& report);
 
 // Queries ordered best first: localized before not, then by position error,

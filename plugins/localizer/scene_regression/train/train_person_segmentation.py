@@ -3,9 +3,11 @@
 mapping images and true person masks, and exports the ONNX model that
 analysis/person_segmentation runs (contract: plugins/analysis/README.md).
 
-  python3 train_person_segmentation.py --recording REC --out DIR
+  python3 train_person_segmentation.py --recording REC [REC ...] --out DIR
 
 Masks are read at REC/truth/masks/mapping/<image path>.png (255 on people).
+Several recordings (e.g. a sparse and a dense crowd) teach both empty and
+crowded views: one crowd density alone biases the masks toward it.
 Network: three stride-2/1 blocks and two dilated blocks (stride 4 output),
 a 1x1 convolution to one logit, the sigmoid folded into the export; loss:
 binary cross-entropy against each 4x4 cell's person fraction; brightness and
@@ -49,7 +51,8 @@ class PersonSegmentation(nn.Module):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--recording", required=True, help="simulator recording (mapping kapture at its root)")
+    ap.add_argument("--recording", required=True, nargs="+",
+                    help="simulator recordings (mapping kapture at their root), pooled")
     ap.add_argument("--out", required=True, help="output folder")
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--height", type=int, default=128)
@@ -64,18 +67,20 @@ def main():
     torch.manual_seed(a.seed)
     torch.set_num_threads(a.threads)
     start = time.time()
-    k = kapture_io.Kapture(a.recording)
     X, Y = [], []
-    for _, _, path in k.records:
-        mask_file = os.path.join(a.recording, "truth", "masks", "mapping", os.path.splitext(path)[0] + ".png")
-        if not os.path.exists(mask_file):
-            continue
-        X.append(kapture_io.normalise(kapture_io.load_image(k.image_file(path), a.width, a.height)))
-        with Image.open(mask_file) as m:
-            cells = m.convert("L").resize((a.width // STRIDE, a.height // STRIDE), Image.BOX)
-        Y.append(np.asarray(cells, np.float32)[None] / 255.0)
-    if not X:
-        sys.exit(f"{a.recording}: no image with a mask under truth/masks/mapping")
+    for recording in a.recording:
+        k = kapture_io.Kapture(recording)
+        before = len(X)
+        for _, _, path in k.records:
+            mask_file = os.path.join(recording, "truth", "masks", "mapping", os.path.splitext(path)[0] + ".png")
+            if not os.path.exists(mask_file):
+                continue
+            X.append(kapture_io.normalise(kapture_io.load_image(k.image_file(path), a.width, a.height)))
+            with Image.open(mask_file) as m:
+                cells = m.convert("L").resize((a.width // STRIDE, a.height // STRIDE), Image.BOX)
+            Y.append(np.asarray(cells, np.float32)[None] / 255.0)
+        if len(X) == before:
+            sys.exit(f"{recording}: no image with a mask under truth/masks/mapping")
     X, Y = torch.from_numpy(np.stack(X)), torch.from_numpy(np.stack(Y))
     person_share = float(Y.mean())
     print(f"{len(X)} images with masks, {person_share:.1%} of the cells on people", flush=True)
@@ -105,7 +110,7 @@ def main():
     total = time.time() - start
     atomic_json(os.path.join(a.out, "training.json"), {
         "recipe": "plugins/localizer/scene_regression/train/train_person_segmentation.py", "argv": sys.argv[1:],
-        "recording": os.path.abspath(a.recording), "images": len(X), "person_cell_share": person_share,
+        "recordings": [os.path.abspath(r) for r in a.recording], "images": len(X), "person_cell_share": person_share,
         "width": a.width, "height": a.height, "iterations": a.iterations, "batch": a.batch, "lr": a.lr,
         "threads": a.threads, "seed": a.seed, "final_loss": loss_value, "train_cell_iou": iou,
         "train_seconds": round(total, 1), "model_bytes": os.path.getsize(onnx_file),
