@@ -5,5 +5,5 @@ namespace locforge::lidar {
 LOCFORGE_DECLARE_STAGE(AddPreprocess);
 }  // namespace locforge::lidar
 
-LOCFORGE_PLUGIN("lidar", "0.7.0", "LiDAR scans into the platform frame: undistortion, merging, filtering",
+LOCFORGE_PLUGIN("lidar", "0.8.0", "LiDAR scans into the platform frame: undistortion, merging, filtering",
                 locforge::Exported<locforge::lidar::AddPreprocess>)

@@ -58,8 +58,9 @@ class Preprocess : public PerItemStage<PreprocessOptions> {
                    "LiDAR scans into the platform frame, undistorted by odometry, merged, filtered, downsampled",
                    {RecordingPort()},
                    {{"scans", "kapture.dataset",
-                     "records_lidar.txt of device 'scan' (platform frame) + one PCD per reference scan"}}};
-    meta.version = "0.7.0";
+                     "records_lidar.txt of device 'scan' (platform frame) + one PCD per reference scan, with each "
+                     "point's time after the record's timestamp (field time, seconds)"}}};
+    meta.version = "0.8.0";
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -186,6 +187,7 @@ void Preprocess::ProcessItem(RunContext& ctx, const std::string& item) {
       return motion.emplace(ms, T_ref_t.Matrix().cast<float>()).first->second;
     };
     const bool timed = o.undistort && scan.has_times();
+    const double scan_offset_s = (static_cast<double>(src.timestamp) - t_ref) * o.seconds_per_unit;
     const Eigen::Matrix4f fixed =
         (o.undistort ? odometry_->Relative(t_ref, static_cast<double>(src.timestamp)) * T_platform_lidar
                      : T_platform_lidar).Matrix().cast<float>();
@@ -199,6 +201,9 @@ void Preprocess::ProcessItem(RunContext& ctx, const std::string& item) {
         continue;  // self hit
       const Eigen::Matrix4f& T = timed ? MotionAt(scan.times[i]) : fixed;
       merged.points.push_back(T.topLeftCorner<3, 3>() * p + T.topRightCorner<3, 1>());
+      // Its time after the output's timestamp: what a later stage needs to
+      // undistort it again with a better motion (slam/pose_graph's calibrated turns).
+      merged.times.push_back(scan_offset_s + (scan.has_times() ? scan.times[i] : 0.0));
     }
   }
   if (o.voxel_m > 0) merged = VoxelDownsample(merged, o.voxel_m);

@@ -36,7 +36,7 @@ class PoseGraphSlam : public Stage<PoseGraphStageOptions> {
                    {{"trajectories", "kapture.trajectories",
                      "sensors/trajectories.txt: rig at every scan, cameras at every image (the first sequence's "
                      "part); map.pcd/ply, pose_graph.g2o, trajectories.svg/png, joins.csv, slam.json"}}};
-    meta.version = "0.9.1";
+    meta.version = "0.11.0";
     return meta;
   }
   using Stage::Stage;
@@ -137,6 +137,9 @@ void PoseGraphStageOptions::Declare(ParamSchema<PoseGraphStageOptions>& s) {
         "Std of odometry edges per metre driven (m/m); 0: no odometry edges").Min(0);
   s.Add("odometry_sigma_rotation_deg_per_m", &O::slam, &SlamOptions::odometry_sigma_rotation_deg_per_m,
         "Rotation std of odometry edges per metre driven (deg/m)").Min(1e-6);
+  s.Add("odometry_yaw_calibration", &O::slam, &SlamOptions::odometry_yaw_calibration,
+        "Scale each sequence's odometry turns by the factor its registrations measure (least squares over "
+        "the accepted sequential registrations; slam.json odometry_yaw_scale)");
   s.Add("planar", &O::slam, &SlamOptions::planar, "Level-floor prior: heights and tilts held near the first pose's");
   s.Add("planar_sigma_z_m", &O::slam, &SlamOptions::planar_sigma_z_m, "Height std of the planar prior (m)").Min(1e-6);
   s.Add("planar_sigma_tilt_deg", &O::slam, &SlamOptions::planar_sigma_tilt_deg, "Tilt std of the planar prior (deg)").Min(1e-6);

@@ -31,18 +31,24 @@ namespace {
 // The reference: an ordered map of cells (used when a cell index leaves the
 // 21-bit range of the packed key below).
 Cloud VoxelDownsampleOrdered(const Cloud& cloud, double voxel) {
-  struct Acc { Eigen::Vector3d sum = Eigen::Vector3d::Zero(); int n = 0; };
+  struct Acc { Eigen::Vector3d sum = Eigen::Vector3d::Zero(); double time = 0; int n = 0; };
   std::map<std::tuple<int, int, int>, Acc> grid;
   const double inv = 1.0 / voxel;
-  for (const auto& p : cloud.points) {
+  const bool timed = cloud.has_times();
+  for (size_t i = 0; i < cloud.points.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
     auto& a = grid[{static_cast<int>(std::floor(p.x() * inv)), static_cast<int>(std::floor(p.y() * inv)),
                     static_cast<int>(std::floor(p.z() * inv))}];
     a.sum += p.cast<double>();
+    if (timed) a.time += cloud.times[i];
     ++a.n;
   }
   Cloud out;
   out.points.reserve(grid.size());
-  for (const auto& [key, a] : grid) out.points.push_back((a.sum / a.n).cast<float>());
+  for (const auto& [key, a] : grid) {
+    out.points.push_back((a.sum / a.n).cast<float>());
+    if (timed) out.times.push_back(a.time / a.n);
+  }
   return out;
 }
 }  // namespace
@@ -68,16 +74,20 @@ Cloud VoxelDownsample(const Cloud& cloud, double voxel) {
   std::unordered_map<uint64_t, uint32_t> slot_of;
   slot_of.reserve(cloud.points.size() / 4 + 16);
   std::vector<Eigen::Vector3d> sum;
+  std::vector<double> time_sum;
   std::vector<int> count;
   std::vector<uint64_t> slot_key;
+  const bool timed = cloud.has_times();
   for (size_t i = 0; i < keys.size(); ++i) {
     const auto [it, inserted] = slot_of.try_emplace(keys[i], static_cast<uint32_t>(sum.size()));
     if (inserted) {
       sum.push_back(Eigen::Vector3d::Zero());
+      time_sum.push_back(0);
       count.push_back(0);
       slot_key.push_back(keys[i]);
     }
     sum[it->second] += cloud.points[i].cast<double>();
+    if (timed) time_sum[it->second] += cloud.times[i];
     ++count[it->second];
   }
   std::vector<uint32_t> order(sum.size());
@@ -85,7 +95,10 @@ Cloud VoxelDownsample(const Cloud& cloud, double voxel) {
   std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return slot_key[a] < slot_key[b]; });
   Cloud out;
   out.points.reserve(order.size());
-  for (uint32_t s : order) out.points.push_back((sum[s] / count[s]).cast<float>());
+  for (uint32_t s : order) {
+    out.points.push_back((sum[s] / count[s]).cast<float>());
+    if (timed) out.times.push_back(time_sum[s] / count[s]);
+  }
   return out;
 }
 

@@ -22,7 +22,7 @@ using Cloud = locforge::PointCloud;
 // clouds mark missing returns so). Throws InputError naming the file and field.
 Cloud ReadScan(const fs::path& path);
 
-// One point (the centroid) per occupied voxel of side `voxel` (m); times dropped.
+// One point (the centroid) per occupied voxel of side `voxel` (m), its time the mean of the voxel's.
 Cloud VoxelDownsample(const Cloud& cloud, double voxel);
 // Applies T to every point.
 void Transform(const Pose& T, Cloud* cloud);

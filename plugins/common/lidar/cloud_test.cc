@@ -98,4 +98,26 @@ TEST(VoxelDownsample, CentroidPerCellInCellOrder) {
 }
 
 }  // namespace
+// Per-point times survive downsampling as each cell's mean (slam/pose_graph
+// undistorts keyframes again from them), on both cell paths; no times in,
+// none out.
+TEST(VoxelDownsample, TimeIsTheCellsMean) {
+  Cloud c;
+  c.points = {{0.01f, 0.01f, 0.0f}, {0.02f, 0.03f, 0.0f}, {0.5f, 0.5f, 0.0f}};
+  c.times = {0.01, 0.03, 0.07};
+  const Cloud down = VoxelDownsample(c, 0.1);
+  ASSERT_EQ(down.times.size(), 2u);
+  EXPECT_DOUBLE_EQ(down.times[0], 0.02);
+  EXPECT_DOUBLE_EQ(down.times[1], 0.07);
+  Cloud far = c;
+  far.points.emplace_back(2e5f, -2e5f, 1.0f);  // the ordered-map path
+  far.times.push_back(0.09);
+  const Cloud down_far = VoxelDownsample(far, 0.1);
+  ASSERT_EQ(down_far.times.size(), 3u);
+  EXPECT_DOUBLE_EQ(down_far.times[0], 0.02);  // cells in (x, y, z) order: the far one (x = 2e5) is last
+  EXPECT_DOUBLE_EQ(down_far.times[2], 0.09);
+  c.times.clear();
+  EXPECT_FALSE(VoxelDownsample(c, 0.1).has_times());
+}
+
 }  // namespace locforge::lidar

@@ -11,8 +11,8 @@ namespace locforge::gicp {
 
 struct OptimizerOptions {
   int max_iterations = 64;
-  double rotation_epsilon = 2e-3;     // radians; converged when the step is below both
-  double translation_epsilon = 1e-3;  // metres
+  double rotation_epsilon = 1e-4;     // radians; converged when the step is below both
+  double translation_epsilon = 1e-4;  // metres (registration/gicp: why so tight)
   bool levenberg_marquardt = false;   // else Gauss-Newton
   double lambda = 1e-6;               // damping (LM: initial value, adapted)
 };

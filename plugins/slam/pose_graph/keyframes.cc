@@ -47,4 +47,17 @@ std::vector<KeyframeChoice> ChooseKeyframes(const std::vector<ScanStamp>& scans,
   return out;
 }
 
+YawScaleFit FitYawScale(const std::vector<std::pair<double, double>>& pairs, const YawScaleOptions& options) {
+  double oo = 0, or_ = 0;
+  YawScaleFit fit;
+  for (const auto& [odometry, registered] : pairs) {
+    oo += odometry * odometry;
+    or_ += odometry * registered;
+    fit.turned_rad += std::abs(odometry);
+  }
+  if (oo > 0) fit.k = or_ / oo;
+  fit.applied = fit.turned_rad >= options.min_turned_rad && std::abs(fit.k - 1) <= options.max_deviation;
+  return fit;
+}
+
 }  // namespace locforge::lidar

@@ -6,7 +6,9 @@
 #ifndef LOCFORGE_PLUGINS_LIDAR_KEYFRAMES_H_
 #define LOCFORGE_PLUGINS_LIDAR_KEYFRAMES_H_
 
+#include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cloud.h"
@@ -65,6 +67,21 @@ struct KeyframeChoice {
 // reaches either threshold; without odometry every scan is one.
 std::vector<KeyframeChoice> ChooseKeyframes(const std::vector<ScanStamp>& scans, const MotionModel& motion,
                                             double keyframe_distance_m, double keyframe_angle_deg);
+
+// Wheel odometry's turns, calibrated against the registrations of the same
+// keyframe pairs: registered yaw = k * odometry yaw, least squares over a
+// sequence's pairs (unequal or misjudged wheel radii scale every turn alike).
+struct YawScaleFit {
+  double k = 1;            // the fitted factor
+  double turned_rad = 0;   // sum of |odometry yaw| it rests on
+  bool applied = false;    // enough turning and a plausible factor
+};
+struct YawScaleOptions {
+  double min_turned_rad = M_PI;  // half a spin, at least
+  double max_deviation = 0.2;    // |k - 1| beyond this is a failure, not wheels
+};
+// pairs: (odometry yaw, registered yaw) in rad, signed about the vertical.
+YawScaleFit FitYawScale(const std::vector<std::pair<double, double>>& pairs, const YawScaleOptions& options = {});
 
 }  // namespace locforge::lidar
 

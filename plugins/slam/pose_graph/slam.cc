@@ -165,49 +165,70 @@ std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyfram
   return lidar::CheckLoop(registrar_, MakeRefiner(), a, b, guesses, LoopOptions(rough_error));
 }
 
+namespace {
+
+// Signed rotation about the vertical (rad): the planar platform's turn.
+double SignedYaw(const Pose& p) {
+  const Eigen::AngleAxisd aa(p.q);
+  return aa.angle() * aa.axis().z();
+}
+
+}  // namespace
+
+bool Slam::RegisterSequential(size_t i, Pose* guess, RegistrationResult* r) {
+  const Keyframe& a = keyframes_[i - 1];
+  const Keyframe& b = keyframes_[i];
+  // Constant velocity mispredicts sudden turns and stops: the zero-motion
+  // guess is tried too (the better-overlapping accepted result is kept),
+  // then, when both fail, headings around the guess.
+  std::vector<Pose> guesses = {MotionGuess(i)};
+  if (!odometry_ && (guesses[0].t.norm() > 0.05 || Eigen::AngleAxisd(guesses[0].q).angle() > 0.05))
+    guesses.push_back(Pose());
+  *guess = guesses[0];
+  bool ok = false;
+  auto try_guesses = [&](const std::vector<Pose>& candidates) {
+    for (const Pose& g : candidates) {
+      const RegistrationResult c = registrar_(b.cloud, a.cloud, g);
+      const bool c_ok = c.converged && c.inlier_fraction >= o_.min_overlap &&
+                        (c.T_target_source.t - g.t).norm() < o_.max_guess_deviation_m;
+      if (c_ok && (!ok || c.inlier_fraction > r->inlier_fraction)) {
+        *r = c;
+        *guess = g;
+        ok = true;
+      }
+    }
+  };
+  try_guesses(guesses);
+  if (!ok && !odometry_) {
+    std::vector<Pose> turned;
+    for (int h = 1; h < o_.loop_yaw_hypotheses; ++h)
+      turned.push_back(guesses[0] * YawPose(2 * M_PI * h / o_.loop_yaw_hypotheses));
+    try_guesses(turned);
+  }
+  if (!ok) *guess = guesses[0];
+  if (ok) *r = Refine(*r, b.cloud, a.cloud);
+  return ok;
+}
+
 void Slam::AddSequentialEdges() {
+  std::map<std::string, std::vector<std::pair<size_t, double>>> odometry_edges;
+  std::vector<long> registration_edge(keyframes_.size(), -1);  // per keyframe i: the edge (i-1, i)
   const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation_m, 5 * o_.sigma_rotation_deg * M_PI / 180);
   for (size_t i = 1; i < keyframes_.size(); ++i) {
     hooks_.check_cancelled();
     const Keyframe& a = keyframes_[i - 1];
     Keyframe& b = keyframes_[i];
     if (!motion_.SameSegment(a.sequence, a.timestamp, b.sequence, b.timestamp)) continue;
-    // Constant velocity mispredicts sudden turns and stops: the zero-motion
-    // guess is tried too (the better-overlapping accepted result is kept),
-    // then, when both fail, headings around the guess.
-    std::vector<Pose> guesses = {MotionGuess(i)};
-    if (!odometry_ && (guesses[0].t.norm() > 0.05 || Eigen::AngleAxisd(guesses[0].q).angle() > 0.05))
-      guesses.push_back(Pose());
-    Pose guess = guesses[0];
+    Pose guess;
     RegistrationResult r;
-    bool ok = false;
-    auto try_guesses = [&](const std::vector<Pose>& candidates) {
-      for (const Pose& g : candidates) {
-        const RegistrationResult c = registrar_(b.cloud, a.cloud, g);
-        const bool c_ok = c.converged && c.inlier_fraction >= o_.min_overlap &&
-                          (c.T_target_source.t - g.t).norm() < o_.max_guess_deviation_m;
-        if (c_ok && (!ok || c.inlier_fraction > r.inlier_fraction)) {
-          r = c;
-          guess = g;
-          ok = true;
-        }
-      }
-    };
-    try_guesses(guesses);
-    if (!ok && !odometry_) {
-      std::vector<Pose> turned;
-      for (int h = 1; h < o_.loop_yaw_hypotheses; ++h)
-        turned.push_back(guesses[0] * YawPose(2 * M_PI * h / o_.loop_yaw_hypotheses));
-      try_guesses(turned);
-    }
-    guess = ok ? guess : guesses[0];
-    if (ok) r = Refine(r, b.cloud, a.cloud);
+    const bool ok = RegisterSequential(i, &guess, &r);
     PoseGraphEdge e;
     e.from = a.id;
     e.to = b.id;
     e.T_from_to = ok ? r.T_target_source : guess;
     e.information = ok ? EdgeInformation(r, e.T_from_to) : odo_info;
     if (!ok) ++stats_.sequential_fallbacks;
+    if (ok) registration_edge[i] = static_cast<long>(graph_.edges.size());
     graph_.edges.push_back(e);
     // Odometry edge beside the registration one: constrains what scans leave
     // free (along corridors), sigma proportional to the distance driven.
@@ -219,11 +240,85 @@ void Slam::AddSequentialEdges() {
       const double turned = Eigen::AngleAxisd(guess.q).angle();
       odo.information = DiagonalInformation(o_.odometry_sigma_m_per_m * d,
                                             o_.odometry_sigma_rotation_deg_per_m * M_PI / 180 * d + 0.05 * turned);
+      odometry_edges[b.sequence].emplace_back(graph_.edges.size(), SignedYaw(e.T_from_to));
       graph_.edges.push_back(odo);
     }
     graph_.nodes[b.id] = graph_.nodes[a.id] * e.T_from_to;  // chain the initial estimate
     if (!odometry_) b.travelled = a.travelled + e.T_from_to.t.norm();
     hooks_.progress(i, keyframes_.size(), "sequential edges");
+  }
+  if (!o_.odometry_yaw_calibration) return;
+  CalibrateOdometryYaw(odometry_edges);
+  // The scans were undistorted with the uncalibrated turns: during a spin
+  // each is skewed by (k - 1) x its own turn, and registrations between
+  // skewed scans turn too far or too short, the same way at every step.
+  const std::vector<bool> changed = RedeskewKeyframes();
+  int again = 0;
+  for (size_t i = 1; i < keyframes_.size(); ++i) {
+    if (registration_edge[i] < 0 || !(changed[i - 1] || changed[i])) continue;
+    Pose guess;
+    RegistrationResult r;
+    if (!RegisterSequential(i, &guess, &r)) continue;  // keeps the first result
+    PoseGraphEdge& e = graph_.edges[static_cast<size_t>(registration_edge[i])];
+    e.T_from_to = r.T_target_source;
+    e.information = EdgeInformation(r, e.T_from_to);
+    ++again;
+  }
+  for (size_t i = 1; i < keyframes_.size(); ++i)  // the initial estimate, chained again
+    if (registration_edge[i] >= 0)
+      graph_.nodes[keyframes_[i].id] =
+          graph_.nodes[keyframes_[i - 1].id] * graph_.edges[static_cast<size_t>(registration_edge[i])].T_from_to;
+  stats_.sequential_reregistered = again;
+  if (again > 0) hooks_.info("pose_graph: " + std::to_string(again) + " sequential registrations redone on rectified scans");
+  for (Keyframe& kf : keyframes_) std::vector<double>().swap(kf.cloud.times);  // no longer needed
+}
+
+std::vector<bool> Slam::RedeskewKeyframes() {
+  constexpr double kMinChange = 1e-4;  // rad (0.006 deg): smaller corrections leave a scan as it is
+  std::vector<bool> changed(keyframes_.size(), false);
+  if (!odometry_) return changed;
+  for (size_t i = 0; i < keyframes_.size(); ++i) {
+    Keyframe& kf = keyframes_[i];
+    const auto k = stats_.odometry_yaw_scale.find(kf.sequence);
+    if (k == stats_.odometry_yaw_scale.end() || k->second == 1 || !kf.cloud.has_times()) continue;
+    const double t_ref = static_cast<double>(kf.timestamp);
+    std::map<int64_t, double> turn;  // odometry turn from the scan's time to each ms of it
+    double largest = 0;
+    std::vector<Eigen::Vector3f> points = kf.cloud.points;
+    for (size_t p = 0; p < points.size(); ++p) {
+      const int64_t ms = std::llround(kf.cloud.times[p] * 1000.0);
+      auto it = turn.find(ms);
+      if (it == turn.end())
+        it = turn.emplace(ms, SignedYaw(odometry_->Relative(t_ref, t_ref + ms * 1e-3 / o_.seconds_per_unit))).first;
+      const double delta = (k->second - 1) * it->second;
+      largest = std::max(largest, std::abs(delta));
+      points[p] = Eigen::AngleAxisf(static_cast<float>(delta), Eigen::Vector3f::UnitZ()) * points[p];
+    }
+    if (largest < kMinChange) continue;
+    kf.cloud.points = std::move(points);
+    kf.rough = VoxelDownsample(kf.cloud, o_.loop_rough_voxel_m);
+    kf.context = MakeScanContext(kf.cloud, ScanContextOptions{});
+    changed[i] = true;
+  }
+  return changed;
+}
+
+void Slam::CalibrateOdometryYaw(const std::map<std::string, std::vector<std::pair<size_t, double>>>& odometry_edges) {
+  for (const auto& [sequence, edges] : odometry_edges) {
+    std::vector<std::pair<double, double>> pairs;
+    for (const auto& [index, registered] : edges) pairs.emplace_back(SignedYaw(graph_.edges[index].T_from_to), registered);
+    const YawScaleFit fit = FitYawScale(pairs);
+    stats_.odometry_yaw_scale[sequence] = fit.applied ? fit.k : 1;
+    std::ostringstream line;
+    line << "pose_graph: " << sequence << ": odometry turns x" << fit.k << " by " << pairs.size() << " registrations ("
+         << fit.turned_rad * 180 / M_PI << " deg turned)" << (fit.applied ? "" : ": not applied");
+    hooks_.info(line.str());
+    if (!fit.applied) continue;
+    for (const auto& [index, registered] : edges) {
+      Pose& T = graph_.edges[index].T_from_to;
+      const Eigen::AngleAxisd aa(T.q);
+      T.q = Eigen::Quaterniond(Eigen::AngleAxisd(fit.k * aa.angle(), aa.axis()));
+    }
   }
 }
 
@@ -346,15 +441,25 @@ Pose Slam::PoseAt(Timestamp t, bool* found, const Keyframe** from) const {
     if (nn) return graph_.nodes.at(next->id);
     return Pose();
   }
-  const Keyframe* best = nullptr;
-  if (before && odometry_->SameSegment(static_cast<double>(before->timestamp), td))
-    best = before;
-  else if (next && odometry_->SameSegment(static_cast<double>(next->timestamp), td))
-    best = next;
+  const bool use_before = before && odometry_->SameSegment(static_cast<double>(before->timestamp), td);
+  const bool use_next = next && odometry_->SameSegment(static_cast<double>(next->timestamp), td);
+  const Keyframe* best = use_before ? before : use_next ? next : nullptr;
   *found = best != nullptr;
   if (from) *from = best;
   if (!best) return Pose();
-  return graph_.nodes.at(best->id) * odometry_->Relative(static_cast<double>(best->timestamp), td);
+  const auto from_keyframe = [&](const Keyframe* k) {
+    return graph_.nodes.at(k->id) * odometry_->Relative(static_cast<double>(k->timestamp), td);
+  };
+  // Between two keyframes of one sequence, the odometry forward from the one
+  // before and back from the one after, blended by time: the wheels' slip
+  // (~0.1 deg of yaw over a keyframe interval) is spread over the interval
+  // instead of jumping at the next keyframe (a Brownian bridge).
+  if (use_before && use_next && before->sequence == next->sequence && next->timestamp > before->timestamp) {
+    const double alpha =
+        static_cast<double>(t - before->timestamp) / static_cast<double>(next->timestamp - before->timestamp);
+    return Interpolate(from_keyframe(before), from_keyframe(next), alpha);
+  }
+  return from_keyframe(best);
 }
 
 }  // namespace locforge::lidar

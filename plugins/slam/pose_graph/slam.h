@@ -79,6 +79,10 @@ struct SlamStats {
   int64_t loop_tests = 0;
   int joins = 0, join_attempts = 0, join_tests = 0, join_rejected_loops = 0;
   int join_trials = 0;  // frames joined on trial (join.h)
+  // Per sequence: the factor its odometry turns were scaled by (1: not
+  // calibrated, too little turning or an implausible factor).
+  std::map<std::string, double> odometry_yaw_scale;
+  int sequential_reregistered = 0;  // registrations redone on re-undistorted keyframes
   PoseGraphSummary summary;
   StepTimes steps;  // keyframes, sequential edges, loops, joins, optimisation, join check
 };
@@ -124,6 +128,15 @@ class Slam {
   Pose MotionGuess(size_t i) const;
   Matrix6d EdgeInformation(const RegistrationResult& r, const Pose& T_ab);
   void AddSequentialEdges();
+  // Keyframe i against i-1 from the motion guess (and its alternatives): true
+  // when accepted (then `r`, refined); `guess`: the guess it started from.
+  bool RegisterSequential(size_t i, Pose* guess, RegistrationResult* r);
+  // Keyframes of calibrated sequences (odometry_yaw_scale != 1) undistorted
+  // again with the calibrated turn, from their points' times: which changed.
+  std::vector<bool> RedeskewKeyframes();
+  // The odometry edges of a sequence (graph edge index, the registered
+  // signed yaw of the same keyframe pair) rescaled by the sequence's factor.
+  void CalibrateOdometryYaw(const std::map<std::string, std::vector<std::pair<size_t, double>>>& odometry_edges);
   int AddLoopEdges();
   void AddLoopEdge(const Keyframe& a, const Keyframe& b, const RegistrationResult& fine);
   void Optimize();

@@ -36,6 +36,14 @@ std::string Quoted(const std::string& s) {
 
 }  // namespace
 
+// "\"map_00\": 0.98, ..." (a sequence's factor, 1 when not calibrated).
+std::string YawScalesJson(const std::map<std::string, double>& scales) {
+  std::ostringstream j;
+  j.precision(8);
+  for (const auto& [sequence, k] : scales) j << (j.tellp() > 0 ? ", " : "") << "\"" << sequence << "\"" << ": " << k;
+  return j.str();
+}
+
 std::string JoinsCsv(const Slam& slam) {
   std::ostringstream s;
   s << "# Where every sequence ended up. status: anchor (its frame is the output's), joined, manual "
@@ -214,6 +222,8 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
     << ",\n  \"loop_edges\": " << loop_edges << ",\n  \"cross_sequence_loop_edges\": " << cross
     << ",\n  \"loop_candidates_tested\": " << st.loop_tests << ",\n  \"joins\": " << st.joins
     << ",\n  \"join_attempts\": " << st.join_attempts << ",\n  \"join_candidates_tested\": " << st.join_tests
+    << ",\n  \"odometry_yaw_scale\": {" << YawScalesJson(st.odometry_yaw_scale) << "}"
+    << ",\n  \"sequential_reregistered\": " << st.sequential_reregistered
     << ",\n  \"join_trials\": " << st.join_trials << ",\n  \"join_rejected_loops\": " << st.join_rejected_loops << ",\n  \"initial_cost\": " << st.summary.initial_cost
     << ",\n  \"final_cost\": " << st.summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
     << ",\n  \"information_fallbacks\": " << st.information_fallbacks << ",\n  \"refinements\": " << st.refinements

@@ -57,6 +57,26 @@ TEST(Keyframes, OnePerKeyframeDistanceAndAtEverySegmentStart) {
   EXPECT_EQ(SequenceOfScan("5.pcd"), "");
 }
 
+// Wheels that turn every spin 3 % short: the registrations' yaw (noise of
+// 0.05 deg per pair) against the odometry's over one spin in 10 deg steps
+// gives the factor back; too little turning or an implausible factor is not applied.
+TEST(Keyframes, YawScaleFitRecoversTheWheelsTurnFactor) {
+  const double k_true = 1.03, step = 10 * M_PI / 180, noise = 0.05 * M_PI / 180;
+  std::vector<std::pair<double, double>> pairs;
+  for (int i = 0; i < 36; ++i) {
+    const double odometry = (i % 2 ? 1 : -1) * 0.001 + step;        // straight bits and spin steps alike
+    pairs.emplace_back(odometry, k_true * odometry + noise * std::sin(7.0 * i));
+  }
+  const YawScaleFit fit = FitYawScale(pairs);
+  EXPECT_TRUE(fit.applied);
+  EXPECT_NEAR(fit.k, k_true, 1e-3);
+  EXPECT_NEAR(fit.turned_rad, 2 * M_PI, 0.01);
+  const YawScaleFit short_turn = FitYawScale({pairs.begin(), pairs.begin() + 10});  // 100 deg
+  EXPECT_FALSE(short_turn.applied);
+  for (auto& p : pairs) p.second *= 1.5;  // a registration failure, not wheels
+  EXPECT_FALSE(FitYawScale(pairs).applied);
+}
+
 TEST(LoopSearch, NearestOfEverySequenceWithinRadiusAfterEnoughTravel) {
   // Sequence a drives a 10 m x 10 m square loop (keyframes 1 m apart) and
   // comes back to its start; sequence b (another part, then the same part)
