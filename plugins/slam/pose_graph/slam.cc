@@ -212,7 +212,8 @@ bool Slam::RegisterSequential(size_t i, Pose* guess, RegistrationResult* r) {
 
 void Slam::AddSequentialEdges() {
   std::map<std::string, std::vector<std::pair<size_t, double>>> odometry_edges;
-  std::vector<long> registration_edge(keyframes_.size(), -1);  // per keyframe i: the edge (i-1, i)
+  std::vector<long> sequential_edge(keyframes_.size(), -1);  // per keyframe i: the edge (i-1, i)
+  std::vector<bool> accepted(keyframes_.size(), false);      // ... from an accepted registration
   const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation_m, 5 * o_.sigma_rotation_deg * M_PI / 180);
   for (size_t i = 1; i < keyframes_.size(); ++i) {
     hooks_.check_cancelled();
@@ -228,7 +229,8 @@ void Slam::AddSequentialEdges() {
     e.T_from_to = ok ? r.T_target_source : guess;
     e.information = ok ? EdgeInformation(r, e.T_from_to) : odo_info;
     if (!ok) ++stats_.sequential_fallbacks;
-    if (ok) registration_edge[i] = static_cast<long>(graph_.edges.size());
+    sequential_edge[i] = static_cast<long>(graph_.edges.size());
+    accepted[i] = ok;
     graph_.edges.push_back(e);
     // Odometry edge beside the registration one: constrains what scans leave
     // free (along corridors), sigma proportional to the distance driven.
@@ -247,7 +249,12 @@ void Slam::AddSequentialEdges() {
     if (!odometry_) b.travelled = a.travelled + e.T_from_to.t.norm();
     hooks_.progress(i, keyframes_.size(), "sequential edges");
   }
-  if (!o_.odometry_yaw_calibration) return;
+  if (o_.odometry_yaw_calibration) CalibrateAndRedo(odometry_edges, sequential_edge, accepted);
+  for (Keyframe& kf : keyframes_) std::vector<double>().swap(kf.cloud.times);  // no longer needed
+}
+
+void Slam::CalibrateAndRedo(const std::map<std::string, std::vector<std::pair<size_t, double>>>& odometry_edges,
+                            const std::vector<long>& sequential_edge, const std::vector<bool>& accepted) {
   CalibrateOdometryYaw(odometry_edges);
   // The scans were undistorted with the uncalibrated turns: during a spin
   // each is skewed by (k - 1) x its own turn, and registrations between
@@ -255,22 +262,21 @@ void Slam::AddSequentialEdges() {
   const std::vector<bool> changed = RedeskewKeyframes();
   int again = 0;
   for (size_t i = 1; i < keyframes_.size(); ++i) {
-    if (registration_edge[i] < 0 || !(changed[i - 1] || changed[i])) continue;
+    if (!accepted[i] || !(changed[i - 1] || changed[i])) continue;
     Pose guess;
     RegistrationResult r;
     if (!RegisterSequential(i, &guess, &r)) continue;  // keeps the first result
-    PoseGraphEdge& e = graph_.edges[static_cast<size_t>(registration_edge[i])];
+    PoseGraphEdge& e = graph_.edges[static_cast<size_t>(sequential_edge[i])];
     e.T_from_to = r.T_target_source;
     e.information = EdgeInformation(r, e.T_from_to);
     ++again;
   }
   for (size_t i = 1; i < keyframes_.size(); ++i)  // the initial estimate, chained again
-    if (registration_edge[i] >= 0)
+    if (sequential_edge[i] >= 0)
       graph_.nodes[keyframes_[i].id] =
-          graph_.nodes[keyframes_[i - 1].id] * graph_.edges[static_cast<size_t>(registration_edge[i])].T_from_to;
+          graph_.nodes[keyframes_[i - 1].id] * graph_.edges[static_cast<size_t>(sequential_edge[i])].T_from_to;
   stats_.sequential_reregistered = again;
   if (again > 0) hooks_.info("pose_graph: " + std::to_string(again) + " sequential registrations redone on rectified scans");
-  for (Keyframe& kf : keyframes_) std::vector<double>().swap(kf.cloud.times);  // no longer needed
 }
 
 std::vector<bool> Slam::RedeskewKeyframes() {

@@ -131,6 +131,11 @@ class Slam {
   // Keyframe i against i-1 from the motion guess (and its alternatives): true
   // when accepted (then `r`, refined); `guess`: the guess it started from.
   bool RegisterSequential(size_t i, Pose* guess, RegistrationResult* r);
+  // CalibrateOdometryYaw, then RedeskewKeyframes, the accepted sequential
+  // registrations of the keyframes it changed redone (sequential_edge: per
+  // keyframe i, the edge (i-1, i) or -1), and the initial estimate chained again.
+  void CalibrateAndRedo(const std::map<std::string, std::vector<std::pair<size_t, double>>>& odometry_edges,
+                        const std::vector<long>& sequential_edge, const std::vector<bool>& accepted);
   // Keyframes of calibrated sequences (odometry_yaw_scale != 1) undistorted
   // again with the calibrated turn, from their points' times: which changed.
   std::vector<bool> RedeskewKeyframes();
