@@ -72,7 +72,7 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     std::ostringstream line;
     line.precision(17);
     line << LowFrequencyScore(gray, lf) << ' ';
-    const fs::path masks = MasksFolder(ctx);
+    const fs::path masks = MasksOf(ctx).folder;
     if (masks.empty()) {
       line << -1;
     } else {
@@ -82,26 +82,24 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     WriteFileAtomic(ItemFile(ctx.output_dir(), image), line.str());
   }
 
-  // The masks parameter, the recording input's truth/masks or the masks input's masks/: one of them.
-  fs::path MasksFolder(RunContext& ctx) const {
+  // The masks parameter, the recording input's truth/masks or the masks input's masks/: one of them,
+  // with what kind of masks it holds (for the reports built on this one, analysis/crowd_sweep).
+  struct Masks {
+    fs::path folder;   // empty: no crowdedness
+    std::string kind;  // "" without masks
+  };
+  Masks MasksOf(RunContext& ctx) const {
     const int given = !options().masks.empty() + ctx.HasInput("recording") + ctx.HasInput("masks");
     if (given > 1)
       throw ParamError("analysis/image_content: give one source of person masks (the masks parameter, the "
                        "recording input or the masks input)");
-    if (ctx.HasInput("masks")) return ctx.Input("masks") / "masks";
-    if (!ctx.HasInput("recording")) return options().masks;
+    if (ctx.HasInput("masks")) return {ctx.Input("masks") / "masks", "person masks estimated by analysis/person_segmentation"};
+    if (!ctx.HasInput("recording"))
+      return {options().masks, options().masks.empty() ? "" : "the person masks of a folder"};
     const fs::path masks = ctx.Input("recording") / "truth" / "masks";
     if (!fs::is_directory(masks))
       throw InputError(masks.string(), 0, "recording", "no person masks (simulate with masks: true)");
-    return masks;
-  }
-
-  // Where the crowdedness came from, for the reports built on this one
-  // (analysis/crowd_sweep): the kind of masks, and their folder.
-  std::string MasksSource(RunContext& ctx) const {
-    if (ctx.HasInput("masks")) return "person masks estimated by analysis/person_segmentation";
-    if (ctx.HasInput("recording")) return "the simulator's true person masks";
-    return options().masks.empty() ? "" : "the person masks of a folder";
+    return {masks, "the simulator's true person masks"};
   }
 
   void Finalize(RunContext& ctx) override {
@@ -145,9 +143,9 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
       md << "; " << crowded << " of " << with_mask << " crowded (>= " << FormatDouble(o.crowded_at_least)
          << " % person pixels)";
     md << ".\n";
-    const std::string source = MasksSource(ctx);
-    if (!source.empty()) md << "\nCrowdedness from " << source << " (" << MasksFolder(ctx).string() << ").\n";
-    WriteFileAtomic(ctx.output_dir() / kCrowdednessSourceFile, source + "\n");
+    const Masks masks = MasksOf(ctx);
+    if (!masks.kind.empty()) md << "\nCrowdedness from " << masks.kind << " (" << masks.folder.string() << ").\n";
+    WriteFileAtomic(ctx.output_dir() / kCrowdednessSourceFile, masks.kind + "\n");
     WriteFileAtomic(ctx.output_dir() / "content.csv", evaluation::ToCsv(table));
     WriteFileAtomic(ctx.output_dir() / "content.md", md.str());
     ctx.Info(md.str());

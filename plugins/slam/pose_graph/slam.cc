@@ -165,16 +165,6 @@ std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyfram
   return lidar::CheckLoop(registrar_, MakeRefiner(), a, b, guesses, LoopOptions(rough_error));
 }
 
-namespace {
-
-// Signed rotation about the vertical (rad): the planar platform's turn.
-double SignedYaw(const Pose& p) {
-  const Eigen::AngleAxisd aa(p.q);
-  return aa.angle() * aa.axis().z();
-}
-
-}  // namespace
-
 bool Slam::RegisterSequential(size_t i, Pose* guess, RegistrationResult* r) {
   const Keyframe& a = keyframes_[i - 1];
   const Keyframe& b = keyframes_[i];
@@ -242,7 +232,7 @@ void Slam::AddSequentialEdges() {
       const double turned = Eigen::AngleAxisd(guess.q).angle();
       odo.information = DiagonalInformation(o_.odometry_sigma_m_per_m * d,
                                             o_.odometry_sigma_rotation_deg_per_m * M_PI / 180 * d + 0.05 * turned);
-      odometry_edges[b.sequence].emplace_back(graph_.edges.size(), SignedYaw(e.T_from_to));
+      odometry_edges[b.sequence].emplace_back(graph_.edges.size(), YawOf(e.T_from_to));
       graph_.edges.push_back(odo);
     }
     graph_.nodes[b.id] = graph_.nodes[a.id] * e.T_from_to;  // chain the initial estimate
@@ -295,7 +285,7 @@ std::vector<bool> Slam::RedeskewKeyframes() {
       const int64_t ms = std::llround(kf.cloud.times[p] * 1000.0);
       auto it = turn.find(ms);
       if (it == turn.end())
-        it = turn.emplace(ms, SignedYaw(odometry_->Relative(t_ref, t_ref + ms * 1e-3 / o_.seconds_per_unit))).first;
+        it = turn.emplace(ms, YawOf(odometry_->Relative(t_ref, t_ref + ms * 1e-3 / o_.seconds_per_unit))).first;
       const double delta = (k->second - 1) * it->second;
       largest = std::max(largest, std::abs(delta));
       points[p] = Eigen::AngleAxisf(static_cast<float>(delta), Eigen::Vector3f::UnitZ()) * points[p];
@@ -312,7 +302,7 @@ std::vector<bool> Slam::RedeskewKeyframes() {
 void Slam::CalibrateOdometryYaw(const std::map<std::string, std::vector<std::pair<size_t, double>>>& odometry_edges) {
   for (const auto& [sequence, edges] : odometry_edges) {
     std::vector<std::pair<double, double>> pairs;
-    for (const auto& [index, registered] : edges) pairs.emplace_back(SignedYaw(graph_.edges[index].T_from_to), registered);
+    for (const auto& [index, registered] : edges) pairs.emplace_back(YawOf(graph_.edges[index].T_from_to), registered);
     const YawScaleFit fit = FitYawScale(pairs);
     stats_.odometry_yaw_scale[sequence] = fit.applied ? fit.k : 1;
     std::ostringstream line;
