@@ -88,7 +88,7 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
   static StageMeta Meta() {
     StageMeta meta = {"registration", "gicp",
             "Generalized-ICP (Segal 2009), Eigen + OpenMP, small_gicp-style", {}, {}};
-    meta.version = "1.3.0";
+    meta.version = "1.4.0";
     return meta;
   }
   explicit Gicp(GicpOptions o)

@@ -116,7 +116,8 @@ uint64_t CellKey(int x, int y, int z) {
 }
 }  // namespace
 
-PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius, int threads) {
+PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius, int threads, int stride) {
+  stride = std::max(1, stride);
   // Neighbours by a grid of cells of side h = radius / 4, searched in shells
   // of cells around the point's (Chebyshev ring s = 0, 1, ..., 4): a point in
   // a ring beyond s is at least s h away, so the search stops once k
@@ -141,8 +142,8 @@ PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius, int 
 #pragma omp parallel num_threads(std::max(1, threads))
   {
     std::vector<std::pair<float, uint32_t>> near;
-#pragma omp for schedule(dynamic, 1024)
-    for (int64_t i = 0; i < static_cast<int64_t>(map.size()); ++i) {
+#pragma omp for schedule(dynamic, 256)
+    for (int64_t i = 0; i < static_cast<int64_t>(map.size()); i += stride) {
       const Eigen::Vector3f& p = map.points[i];
       const Eigen::Vector3i c = cell(p);
       near.clear();
@@ -181,10 +182,10 @@ PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius, int 
   }
   PlaneResidualStats out;
   std::vector<double> residuals;
-  residuals.reserve(map.size());
-  for (double r : residual) {
-    if (std::isnan(r)) ++out.skipped;
-    else residuals.push_back(r);
+  residuals.reserve(map.size() / stride + 1);
+  for (size_t i = 0; i < residual.size(); i += stride) {
+    if (std::isnan(residual[i])) ++out.skipped;
+    else residuals.push_back(residual[i]);
   }
   out.points = residuals.size();
   if (residuals.empty()) return out;

@@ -37,8 +37,11 @@ struct PlaneResidualStats {
   size_t skipped = 0;     // points with fewer than k neighbours within radius
   double mean = 0, median = 0, rmse = 0, p90 = 0;  // m
 };
-// `threads`: the same figures at any count.
-PlaneResidualStats MapPlaneResidual(const Cloud& map, int k = 10, double radius = 0.5, int threads = 1);
+// `threads`: the same figures at any count. `stride`: evaluated at every
+// stride-th point only (neighbours still from the whole map), a systematic
+// sample of the same statistics at 1/stride of the cost.
+PlaneResidualStats MapPlaneResidual(const Cloud& map, int k = 10, double radius = 0.5, int threads = 1,
+                                    int stride = 1);
 
 }  // namespace locforge::lidar
 

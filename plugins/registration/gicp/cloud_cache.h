@@ -7,6 +7,12 @@
 // that was preprocessed; preprocessing is deterministic, so a cached result
 // is bit-identical to a fresh one. Thread-safe: concurrent registrations may
 // share one cache; values are shared, immutable, and outlive eviction.
+//
+// Caches of one process also find each other's live entries (a weak index,
+// holding no memory of its own): a SLAM creates one back-end per pass (a
+// wide gate, then a narrow final pass; rough checks on coarse clouds) with
+// equal preprocessing, and each pass would otherwise build the same KD-tree
+// and covariances again.
 #ifndef LOCFORGE_PLUGINS_REGISTRATION_GICP_CLOUD_CACHE_H_
 #define LOCFORGE_PLUGINS_REGISTRATION_GICP_CLOUD_CACHE_H_
 
@@ -37,6 +43,7 @@ class CloudCache {
 
   struct Stats {
     uint64_t hits = 0, misses = 0;
+    uint64_t shared_hits = 0;  // of the hits: entries found in another live cache
     size_t entries = 0;
   };
   Stats stats() const;
@@ -47,15 +54,22 @@ class CloudCache {
     PreprocessOptions options;
     std::vector<Eigen::Vector3f> points;  // the input, compared on a hash match
     std::shared_ptr<const PreprocessedCloud> value;
+
+    bool Matches(uint64_t h, const PointCloud& cloud, const PreprocessOptions& o) const;
   };
   // Moves a matching entry to the front and returns its value, else null.
   // Caller holds mutex_.
   std::shared_ptr<const PreprocessedCloud> FindLocked(uint64_t hash, const PointCloud& cloud,
                                                       const PreprocessOptions& o);
+  // Keeps `entry` in front (evicting beyond the capacity) and indexes it for
+  // the other caches. Caller holds mutex_.
+  void KeepLocked(std::shared_ptr<const Entry> entry);
 
   const size_t capacity_;
   mutable std::mutex mutex_;
-  std::list<Entry> entries_;  // most recently used first; a few dozen at most, searched linearly
+  // Most recently used first; a few dozen at most, searched linearly. Shared
+  // with the weak index, which sees an entry as long as some cache keeps it.
+  std::list<std::shared_ptr<const Entry>> entries_;
   Stats stats_;
 };
 

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <memory>
 #include <random>
 #include <thread>
 
@@ -45,6 +46,26 @@ void ExpectIdentical(const PreprocessedCloud& a, const PreprocessedCloud& b) {
     ASSERT_EQ(ia, ib);
     ASSERT_EQ(da, db);
   }
+}
+
+// Two back-end instances (a SLAM's wide pass and its narrow final pass)
+// preprocess each cloud once between them, and nothing outlives both.
+TEST(CloudCache, CachesFindEachOthersLiveEntries) {
+  const PointCloud a = RandomCloud(2000, 41), b = RandomCloud(2000, 42);
+  auto wide = std::make_unique<CloudCache>(4);
+  CloudCache narrow(4);
+  const auto va = wide->Insert(a, kOptions, Fresh(a));
+  EXPECT_EQ(narrow.Find(a, kOptions), va);  // the other cache's object: not preprocessed again
+  EXPECT_EQ(narrow.stats().shared_hits, 1u);
+  EXPECT_EQ(narrow.Find(a, kOptions), va);  // now its own entry
+  EXPECT_EQ(narrow.stats().shared_hits, 1u);
+  const PreprocessOptions other{0.5, 20, 1e-3};
+  EXPECT_EQ(narrow.Find(a, other), nullptr);  // other options: a miss
+  wide->Insert(b, kOptions, Fresh(b));
+  wide.reset();                               // b's only cache is gone
+  EXPECT_EQ(narrow.Find(b, kOptions), nullptr);
+  EXPECT_EQ(narrow.Find(a, kOptions), va);    // a lives on in narrow
+  EXPECT_EQ(narrow.stats().misses, 2u);
 }
 
 TEST(CloudCache, HitsAndLeastRecentlyUsedEviction) {

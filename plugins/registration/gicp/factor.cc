@@ -42,7 +42,7 @@ double RobustCost(RobustKernel kernel, double width, double e) {
 }
 
 LinearSystem Linearize(const GicpInputs& in, const Eigen::Isometry3d& T, const FactorOptions& o,
-                       int threads) {
+                       int threads, std::vector<int>* correspondences) {
   const Points& source = *in.source;
   const Points& target = *in.target;
   const int64_t n = static_cast<int64_t>(source.size());
@@ -55,9 +55,11 @@ LinearSystem Linearize(const GicpInputs& in, const Eigen::Isometry3d& T, const F
     const int64_t begin = n * blk / kBlocks, end = n * (blk + 1) / kBlocks;
     for (int64_t i = begin; i < end; ++i) {
       const Eigen::Vector3d p = T * source[i];
-      int j;
+      int j = correspondences ? (*correspondences)[i] : -1;
       double d2;
-      if (!in.target_tree->Nearest(p, max_sq, &j, &d2)) continue;  // rejector
+      const bool paired = in.target_tree->NearestFrom(p, max_sq, &j, &d2);
+      if (correspondences) (*correspondences)[i] = paired ? j : -1;
+      if (!paired) continue;  // rejector
       // Segal et al. eq. 2: combined covariance of the pair in the target frame.
       const Eigen::Matrix3d C = (*in.target_cov)[j] + R * (*in.source_cov)[i] * R.transpose();
       const Eigen::Matrix3d M = C.inverse();

@@ -46,8 +46,12 @@ struct LinearSystem {
 };
 
 // Deterministic for any thread count: points are summed in fixed blocks.
+// `correspondences` (optional, one per source point, -1: none yet): each
+// search starts from the point's previous correspondence and stores the new
+// one, so an optimizer's later iterations, moving points by millimetres,
+// search little (the same pairs as cold searches).
 LinearSystem Linearize(const GicpInputs& in, const Eigen::Isometry3d& T, const FactorOptions& o,
-                       int threads);
+                       int threads, std::vector<int>* correspondences = nullptr);
 
 }  // namespace locforge::gicp
 

@@ -3,6 +3,7 @@
 // differences of its cost.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "gicp/factor.h"
@@ -40,6 +41,31 @@ TEST(KdTree, NearestAndKNearestMatchBruteForce) {
     ASSERT_EQ(knn.size(), 20u);
     for (int k = 0; k < 20; ++k) EXPECT_DOUBLE_EQ(kd[k], all[k].first) << k;
   }
+}
+
+// EstimateCovariances' warm start (each query bounded by the previous one's
+// k-th distance plus their gap) returns the neighbours an unbounded search
+// returns, so the covariances are bit-identical at any thread count (each
+// thread starts its own chain) and equal to those of fresh searches.
+TEST(KdTree, WarmStartedKNearestIsExact) {
+  Points pts = RandomPoints(3000, 5);
+  for (auto& p : pts) p.z() *= 0.02;  // a noisy floor, as LiDAR scans are mostly surfaces
+  const KdTree tree(pts);
+  std::vector<int> cold, warm;
+  std::vector<double> cold_d, warm_d;
+  for (int i = 1; i < static_cast<int>(pts.size()); i += 37) {
+    const int prev = tree.order()[static_cast<size_t>(i) - 1], cur = tree.order()[i];
+    tree.KNearest(pts[prev], 20, &cold, &cold_d);
+    const double r = std::sqrt(cold_d.back()) + (pts[cur] - pts[prev]).norm();
+    tree.KNearest(pts[cur], 20, &warm, &warm_d, r * r * (1 + 1e-12));
+    tree.KNearest(pts[cur], 20, &cold, &cold_d);
+    ASSERT_EQ(warm, cold);
+    ASSERT_EQ(warm_d, cold_d);
+  }
+  const Covariances one = EstimateCovariances(pts, tree, 20, 1e-3, 1);
+  const Covariances three = EstimateCovariances(pts, tree, 20, 1e-3, 3);
+  ASSERT_EQ(one.size(), three.size());
+  for (size_t i = 0; i < one.size(); ++i) ASSERT_TRUE(one[i] == three[i]) << i;
 }
 
 TEST(Preprocess, PlaneCovarianceHasTheNormalAsItsSmallAxis) {

@@ -15,6 +15,8 @@ KdTree::KdTree(const Points& points) : order_(points.size()) {
   nodes_.reserve(2 * points.size() / kLeafSize + 2);
   if (points.empty()) return;
   Build(points, 0, static_cast<int>(points.size()));
+  position_.resize(points.size());
+  for (size_t i = 0; i < order_.size(); ++i) position_[order_[i]] = static_cast<int>(i);
   x_.resize(points.size());
   y_.resize(points.size());
   z_.resize(points.size());
@@ -103,6 +105,37 @@ void KdTree::SearchFromRoot(const Eigen::Vector3d& q, Visitor& v) const {
   }
 }
 
+namespace {
+struct Best {
+  double d2;
+  int pos = -1;
+  double bound() const { return d2; }
+  void Add(int i, double d) {
+    if (d < d2) {
+      d2 = d;
+      pos = i;
+    }
+  }
+};
+}  // namespace
+
+bool KdTree::NearestFrom(const Eigen::Vector3d& q, double max_sq_dist, int* index, double* sq_dist) const {
+  if (nodes_.empty()) return false;
+  Best best{max_sq_dist};
+  if (*index >= 0 && *index < static_cast<int>(position_.size())) {
+    const int pos = position_[*index];
+    // Computed as a leaf computes it, so the hint compares exactly.
+    const double dx = x_[pos] - q.x(), dy = y_[pos] - q.y(), dz = z_[pos] - q.z();
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    if (d2 < max_sq_dist) best = Best{d2, pos};
+  }
+  SearchFromRoot(q, best);
+  if (best.pos < 0) return false;
+  *index = order_[best.pos];
+  *sq_dist = best.d2;
+  return true;
+}
+
 bool KdTree::Nearest(const Eigen::Vector3d& q, double max_sq_dist, int* index,
                      double* sq_dist) const {
   struct Best {
@@ -125,14 +158,14 @@ bool KdTree::Nearest(const Eigen::Vector3d& q, double max_sq_dist, int* index,
 }
 
 void KdTree::KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
-                      std::vector<double>* sq_dists) const {
+                      std::vector<double>* sq_dists, double max_sq_dist) const {
   // The k best so far, sorted, in caller-provided arrays (k is small:
   // insertion from the back is cheapest).
   struct KBest {
     int k, n = 0;
     int* pos;
     double* d2;
-    double worst = std::numeric_limits<double>::infinity();  // d2[k - 1] once full
+    double worst;  // d2[k - 1] once full; before, the caller's bound
     double bound() const { return worst; }
     void Add(int i, double d) {
       if (d >= worst) return;
@@ -150,7 +183,7 @@ void KdTree::KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices
   indices->resize(k);
   sq_dists->resize(k);
   if (k == 0) return;
-  KBest best{k, 0, indices->data(), sq_dists->data()};
+  KBest best{k, 0, indices->data(), sq_dists->data(), max_sq_dist};
   SearchFromRoot(q, best);
   indices->resize(best.n);
   sq_dists->resize(best.n);

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace locforge::gicp {
@@ -23,10 +24,18 @@ class KdTree {
   // Index of the nearest point and its squared distance; false when no point
   // lies within sqrt(max_sq_dist).
   bool Nearest(const Eigen::Vector3d& q, double max_sq_dist, int* index, double* sq_dist) const;
+  // The same answer, warm-started from `*index` when it is a point's index
+  // (>= 0): that point's distance bounds the search from its first step (an
+  // optimizer's previous correspondence, a few millimetres off). Ties may
+  // keep the hint where a cold search picks another point at equal distance.
+  bool NearestFrom(const Eigen::Vector3d& q, double max_sq_dist, int* index, double* sq_dist) const;
   // Up to k nearest points, closest first (fewer when the cloud is smaller).
   // Reuses the vectors' storage: no allocation once they have held k items.
+  // `max_sq_dist`: a bound known to hold at least k points (the caller's
+  // warm start: EstimateCovariances); the answer is the same, found sooner.
   void KNearest(const Eigen::Vector3d& q, int k, std::vector<int>* indices,
-                std::vector<double>* sq_dists) const;
+                std::vector<double>* sq_dists,
+                double max_sq_dist = std::numeric_limits<double>::infinity()) const;
 
   size_t size() const { return order_.size(); }
   // Input indices in tree order: visiting points in this order keeps
@@ -48,6 +57,7 @@ class KdTree {
 
   std::vector<double> x_, y_, z_;  // the points in tree order
   std::vector<int> order_;         // input index of each
+  std::vector<int> position_;      // tree position of each input index
   std::vector<Node> nodes_;
   Eigen::Vector3d lo_, hi_;  // bounding box of all points
 };

@@ -30,7 +30,8 @@ Outcome Optimize(const GicpInputs& in, const Eigen::Isometry3d& initial, const F
                  const OptimizerOptions& o, int threads) {
   Outcome out;
   out.T = initial;
-  out.system = Linearize(in, out.T, f, threads);
+  std::vector<int> pairs(in.source->size(), -1);  // warm starts of the correspondence searches
+  out.system = Linearize(in, out.T, f, threads, &pairs);
   double lambda = o.lambda;
   for (int it = 1; it <= o.max_iterations; ++it) {
     if (out.system.inliers < kMinInliers) return out;
@@ -38,7 +39,7 @@ Outcome Optimize(const GicpInputs& in, const Eigen::Isometry3d& initial, const F
     if (!o.levenberg_marquardt) {
       const Vector6d d = Solve(out.system, lambda);
       out.T = ApplyLeft(d, out.T);
-      out.system = Linearize(in, out.T, f, threads);
+      out.system = Linearize(in, out.T, f, threads, &pairs);
       if (SmallStep(d, o)) {
         out.converged = true;
         return out;
@@ -51,10 +52,12 @@ Outcome Optimize(const GicpInputs& in, const Eigen::Isometry3d& initial, const F
     for (int tries = 0; tries < 10 && !accepted; ++tries) {
       d = Solve(out.system, lambda);
       const Eigen::Isometry3d T = ApplyLeft(d, out.T);
-      LinearSystem s = Linearize(in, T, f, threads);
+      std::vector<int> tried = pairs;  // kept only if the step is
+      LinearSystem s = Linearize(in, T, f, threads, &tried);
       if (s.inliers >= kMinInliers && s.cost <= out.system.cost) {
         out.T = T;
         out.system = std::move(s);
+        pairs.swap(tried);
         lambda /= 10;
         accepted = true;
       } else {

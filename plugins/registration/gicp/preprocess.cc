@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <limits>
 
 namespace locforge::gicp {
 
@@ -130,10 +131,28 @@ Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k,
   {
     std::vector<int> idx;
     std::vector<double> d2;
+    int previous = -1;  // the last query of this thread and the distance to its k-th neighbour
+    double previous_radius = 0;
 #pragma omp for schedule(static)
     for (int64_t t = 0; t < static_cast<int64_t>(order.size()); ++t) {
       const int i = order[t];  // in tree order: successive queries are neighbours
-      tree.KNearest(points[i], k, &idx, &d2);
+      // Warm start (exact): the previous query's k neighbours lie within
+      // previous_radius + |q - previous| of q (triangle inequality), so q's k
+      // nearest do too; the search prunes by that bound from its first step.
+      double bound = std::numeric_limits<double>::infinity();
+      if (previous >= 0) {
+        const double r = previous_radius + (points[i] - points[previous]).norm();
+        bound = r * r * (1 + 1e-12) + 1e-300;  // never below the k-th distance by rounding
+      }
+      const int expected = std::min<int>(k, static_cast<int>(points.size()));
+      tree.KNearest(points[i], k, &idx, &d2, bound);
+      if (static_cast<int>(idx.size()) < expected) tree.KNearest(points[i], k, &idx, &d2);  // cannot happen; cheap insurance
+      if (static_cast<int>(idx.size()) == expected) {
+        previous = i;
+        previous_radius = std::sqrt(d2.back());
+      } else {
+        previous = -1;
+      }
       out[i] = idx.size() < 3 ? Eigen::Matrix3d::Identity()
                               : PlaneCovariance(points, points[i], idx.data(), static_cast<int>(idx.size()), epsilon);
     }

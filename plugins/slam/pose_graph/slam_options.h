@@ -104,6 +104,7 @@ struct SlamOptions {
   double map_voxel_m = 0.05;          // accumulated map
   int map_residual_k = 10;            // neighbours of the map's point-to-plane residual
   double map_residual_radius_m = 0.5; // their search radius
+  int map_residual_stride = 4;        // ... evaluated at every n-th map point (a sample: 1/n of the cost)
   // Manual initial-pose corrections: per sequence "seq x_m y_m yaw_deg".
   std::vector<std::string> initial_poses;
   double seconds_per_unit = 1e-6;     // duration of one timestamp unit

@@ -173,7 +173,8 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
   }
   std::set<std::string> sequences;
   for (const auto& kf : keyframes) sequences.insert(kf.sequence);
-  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius_m, slam.threads());
+  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius_m, slam.threads(),
+                                                     o.map_residual_stride);
   std::ostringstream loops_json;
   loops_json.precision(16);
   for (const auto& e : graph.edges) {
@@ -229,6 +230,7 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
     << ",\n  \"information_fallbacks\": " << st.information_fallbacks << ",\n  \"refinements\": " << st.refinements
     << ",\n  \"refinements_rejected\": " << st.refinements_rejected << ",\n  \"map_points\": " << map.size()
     << ",\n  \"map_plane_residual\": {\"k\": " << o.map_residual_k << ", \"radius\": " << o.map_residual_radius_m
+    << ", \"stride\": " << o.map_residual_stride
     << ", \"points\": " << crisp.points << ", \"skipped\": " << crisp.skipped << ", \"mean\": " << crisp.mean
     << ", \"median\": " << crisp.median << ", \"rmse\": " << crisp.rmse << ", \"p90\": " << crisp.p90 << "}"
     << ",\n  \"join_attempts_detail\": [" << joins_json.str() << "\n  ]"
