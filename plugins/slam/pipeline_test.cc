@@ -51,10 +51,20 @@ nodes:
 )";
   WriteFileAtomic(dir / "gt.yaml", pipeline);
   ASSERT_EQ(testing::RunHost(bin, {"run", (dir / "gt.yaml").string(), "--workspace", (dir / "ws").string(),
-                                   "--set", "dataset=" + dataset.string()},
+                                   "--set", "dataset=" + dataset.string(), "--threads", "2"},
                               dir / "gt.log"),
             0)
       << ReadFile(dir / "gt.log");
+  // One thread: no registrations side by side (slam/pose_graph workers), one
+  // thread inside each: the same bytes.
+  ASSERT_EQ(testing::RunHost(bin, {"run", (dir / "gt.yaml").string(), "--workspace", (dir / "ws1").string(),
+                                   "--set", "dataset=" + dataset.string(), "--threads", "1"},
+                              dir / "gt1.log"),
+            0)
+      << ReadFile(dir / "gt1.log");
+  const std::string two_threads = ReadFile(dir / "ws/nodes/slam/sensors/trajectories.txt");
+  EXPECT_GT(two_threads.size(), 1000u);
+  EXPECT_EQ(ReadFile(dir / "ws1/nodes/slam/sensors/trajectories.txt"), two_threads);
   const std::string metrics = ReadFile(dir / "ws/nodes/eval/metrics.json");
   const double ate = JsonNumber(metrics, "ape_translation_m", "rmse");
   const double rot = JsonNumber(metrics, "ape_rotation_deg", "rmse");

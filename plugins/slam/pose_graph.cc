@@ -18,12 +18,6 @@ struct PoseGraphStageOptions {
   std::string dataset;                       // the recording (or the `recording` input)
   std::string motion_prior = "wheel";        // wheel | constant_velocity
   ComponentSpec registration{"registration/gicp"};
-  // The wide-gate passes (rough checks, the first pass of sequential and loop
-  // registrations) only seed the final narrow pass of `registration`, which
-  // converges fully; stopped 20x earlier they cost half as much (README:
-  // throughput) for the same final poses.
-  ComponentSpec coarse_registration =
-      ComponentSpec("registration/gicp").With("rotation_epsilon", "0.002").With("translation_epsilon", "0.001");
   WheelOverrides wheels;
   SlamOptions slam;
   static void Declare(ParamSchema<PoseGraphStageOptions>& s);
@@ -63,11 +57,10 @@ void PoseGraphStageOptions::Declare(ParamSchema<PoseGraphStageOptions>& s) {
   s.Add("registration", &O::registration,
         "Registration back-end of every registration: a stage id, or {stage: ID, params: {...}}")
       .Implements(LF_REGISTRATION_INTERFACE);
-  s.Add("coarse_registration", &O::coarse_registration,
-        "Back-end of the wide-gate passes (rough checks, first pass of sequential and loop registrations), "
-        "whose results only seed the final pass of `registration`; unused when "
-        "refine_correspondence_distance_m is 0 (then `registration` does every pass)")
-      .Implements(LF_REGISTRATION_INTERFACE);
+  s.Add("coarse_params", &O::slam, &SlamOptions::coarse_params,
+        "key=value overrides of registration's parameters for the wide-gate passes (rough checks, first pass "
+        "of sequential and loop registrations), which only seed the final pass; keys the back-end does not "
+        "declare are skipped (logged); unused when refine_correspondence_distance_m is 0");
   s.Add("refine_correspondence_distance_m", &O::slam, &SlamOptions::refine_correspondence_distance_m,
         "Final pass of accepted sequential and precise loop registrations with the back-end's "
         "max_correspondence_distance set to this (m; 0: none)").Range(0, 100);
@@ -180,17 +173,33 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   std::unique_ptr<WheelOdometry> odometry;
   if (o.motion_prior == "wheel")
     odometry = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(recording, o.wheels.Params()));
-  // The wide-gate passes, and the final pass of refine_correspondence_distance_m
-  // (max_correspondence_distance is a key every registration back-end declares).
+  // The final pass of refine_correspondence_distance_m (max_correspondence_distance
+  // is a key every registration back-end declares), and the wide-gate passes:
+  // the same back-end with coarse_params (those it declares).
   const bool final_pass = o.slam.refine_correspondence_distance_m > 0;
-  RegistrationBackend backend = RegistrationBackend::Create(ctx, final_pass ? o.coarse_registration : o.registration);
-  RegistrationBackend refine = RegistrationBackend::Create(
-      ctx, final_pass
-               ? o.registration.With("max_correspondence_distance", FormatDouble(o.slam.refine_correspondence_distance_m))
-               : o.registration);
-  if (final_pass && o.coarse_registration.stage != o.registration.stage)
-    ctx.Info("pose_graph: wide-gate passes by " + o.coarse_registration.stage + ", final passes by " +
-             o.registration.stage);
+  const ComponentSpec narrow_spec =
+      final_pass ? o.registration.With("max_correspondence_distance", FormatDouble(o.slam.refine_correspondence_distance_m))
+                 : o.registration;
+  RegistrationBackend refine = RegistrationBackend::Create(ctx, narrow_spec);
+  ComponentSpec wide_spec = o.registration;
+  if (final_pass) {
+    std::string applied, skipped;
+    for (const std::string& entry : o.slam.coarse_params) {
+      const size_t eq = entry.find('=');
+      const std::string key = entry.substr(0, eq), value = entry.substr(eq + 1);  // SlamOptions::Check: key=value
+      if (!refine.Declares(key)) {
+        skipped += (skipped.empty() ? "" : ", ") + key;
+        continue;
+      }
+      wide_spec = wide_spec.With(key, value);
+      applied += (applied.empty() ? "" : ", ") + entry;
+    }
+    if (!skipped.empty())
+      ctx.Info("pose_graph: coarse_params " + skipped + " not declared by " + o.registration.stage +
+               ": its wide-gate passes run to its own stop");
+    if (!applied.empty()) ctx.Info("pose_graph: wide-gate passes with " + applied);
+  }
+  RegistrationBackend backend = RegistrationBackend::Create(ctx, wide_spec);
   const int threads = ctx.threads();
   SlamHooks hooks;
   hooks.info = [&](const std::string& m) { ctx.Info(m); };
@@ -200,6 +209,25 @@ void PoseGraphSlam::Run(RunContext& ctx) {
       o.slam, odometry.get(),
       [&](const Cloud& s, const Cloud& t, const Pose& g) { return backend.Align(s, t, g, threads); },
       [&](const Cloud& s, const Cloud& t, const Pose& g) { return refine.Align(s, t, g, threads); }, threads, hooks);
+  // Independent registrations (sequential ones guessed by the wheels, the
+  // rough checks of joins) side by side: one single-threaded back-end pair
+  // per thread (a back-end aligns on one thread at a time).
+  std::vector<RegistrationBackend> worker_backends;
+  if (threads > 1) {
+    std::vector<std::pair<Registrar, Registrar>> workers;
+    worker_backends.reserve(2 * static_cast<size_t>(threads));
+    for (int w = 0; w < threads; ++w) {
+      worker_backends.push_back(RegistrationBackend::Create(ctx, wide_spec));
+      worker_backends.push_back(RegistrationBackend::Create(ctx, narrow_spec));
+    }
+    for (int w = 0; w < threads; ++w) {
+      const RegistrationBackend* wide = &worker_backends[2 * w];
+      const RegistrationBackend* narrow = &worker_backends[2 * w + 1];
+      workers.emplace_back([wide](const Cloud& s, const Cloud& t, const Pose& g) { return wide->Align(s, t, g, 1); },
+                           [narrow](const Cloud& s, const Cloud& t, const Pose& g) { return narrow->Align(s, t, g, 1); });
+    }
+    slam.SetWorkerRegistrars(std::move(workers));
+  }
 
   const fs::path scans_root = ctx.Input("scans");
   kapture::Kapture k(scans_root);

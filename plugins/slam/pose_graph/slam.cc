@@ -1,6 +1,10 @@
 #include "slam.h"
 
 #include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -31,6 +35,13 @@ bool SlamOptions::Check(std::string* why) const {
     Pose start;
     if (!ParseInitialPose(p, &seq, &start)) {
       if (why) *why = "initial_poses: '" + p + "' is not 'sequence x_m y_m yaw_deg'";
+      return false;
+    }
+  }
+  for (const auto& entry : coarse_params) {
+    const size_t eq = entry.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == entry.size()) {
+      if (why) *why = "coarse_params: '" + entry + "' is not key=value (e.g. rotation_epsilon=0.002)";
       return false;
     }
   }
@@ -135,14 +146,23 @@ Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) {
 // its pose and information when it converged near `first`, else `first`;
 // `first`'s overlap is kept (acceptance is decided on the first pass).
 RegistrationResult Slam::Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target) {
+  return Refine(first, source, target, refine_registrar_);
+}
+
+RegistrationResult Slam::Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target,
+                                const Registrar& refine) {
   if (o_.refine_correspondence_distance_m <= 0) return first;
-  RegistrationResult fine = refine_registrar_(source, target, first.T_target_source);
+  RegistrationResult fine = refine(source, target, first.T_target_source);
   const double moved = (fine.T_target_source.t - first.T_target_source.t).norm();
   if (!fine.converged || moved > o_.refine_correspondence_distance_m) {
+    std::lock_guard<std::mutex> lock(stats_mutex_);  // workers refine side by side
     ++stats_.refinements_rejected;
     return first;
   }
-  ++stats_.refinements;
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.refinements;
+  }
   fine.inlier_fraction = first.inlier_fraction;
   return fine;
 }
@@ -166,6 +186,11 @@ std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyfram
 }
 
 bool Slam::RegisterSequential(size_t i, Pose* guess, RegistrationResult* r) {
+  return RegisterSequential(i, guess, r, registrar_, refine_registrar_);
+}
+
+bool Slam::RegisterSequential(size_t i, Pose* guess, RegistrationResult* r, const Registrar& registrar,
+                              const Registrar& refine) {
   const Keyframe& a = keyframes_[i - 1];
   const Keyframe& b = keyframes_[i];
   // Constant velocity mispredicts sudden turns and stops: the zero-motion
@@ -178,7 +203,7 @@ bool Slam::RegisterSequential(size_t i, Pose* guess, RegistrationResult* r) {
   bool ok = false;
   auto try_guesses = [&](const std::vector<Pose>& candidates) {
     for (const Pose& g : candidates) {
-      const RegistrationResult c = registrar_(b.cloud, a.cloud, g);
+      const RegistrationResult c = registrar(b.cloud, a.cloud, g);
       const bool c_ok = c.converged && c.inlier_fraction >= o_.min_overlap &&
                         (c.T_target_source.t - g.t).norm() < o_.max_guess_deviation_m;
       if (c_ok && (!ok || c.inlier_fraction > r->inlier_fraction)) {
@@ -196,8 +221,56 @@ bool Slam::RegisterSequential(size_t i, Pose* guess, RegistrationResult* r) {
     try_guesses(turned);
   }
   if (!ok) *guess = guesses[0];
-  if (ok) *r = Refine(*r, b.cloud, a.cloud);
+  if (ok) *r = Refine(*r, b.cloud, a.cloud, refine);
   return ok;
+}
+
+bool Slam::ForEachOnWorkers(size_t count, const std::function<void(size_t n, size_t worker)>& fn,
+                            const std::string& what) {
+  if (workers_.size() < 2 || count == 0) return false;
+  // Runs of consecutive items per worker: neighbouring items share clouds
+  // (keyframe i is in pairs i and i+1), which a worker's back-ends keep.
+  constexpr size_t kRun = 8;
+  std::atomic<size_t> next{0}, done{0};
+  std::atomic<bool> stop{false};
+  std::vector<std::exception_ptr> errors(workers_.size());
+  auto work = [&](size_t w) {
+    try {
+      for (size_t first = next.fetch_add(kRun); first < count && !stop; first = next.fetch_add(kRun)) {
+        for (size_t n = first; n < std::min(first + kRun, count) && !stop; ++n) {
+          fn(n, w);
+          ++done;
+          if (w == 0) {  // hooks are called from this thread only
+            hooks_.check_cancelled();
+            if (!what.empty()) hooks_.progress(done, count, what);
+          }
+        }
+      }
+    } catch (...) {
+      errors[w] = std::current_exception();
+      stop = true;
+    }
+  };
+  std::vector<std::thread> threads;
+  for (size_t w = 1; w < workers_.size(); ++w) threads.emplace_back(work, w);
+  work(0);
+  for (auto& t : threads) t.join();
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+  return true;
+}
+
+void Slam::RegisterSequentialAll(const std::vector<size_t>& items, std::vector<SequentialResult>* out,
+                                 const std::string& what) {
+  if (!odometry_) return;  // guesses chain through the previous results otherwise
+  ForEachOnWorkers(
+      items.size(),
+      [&](size_t n, size_t w) {
+        SequentialResult& s = (*out)[items[n]];
+        s.ok = RegisterSequential(items[n], &s.guess, &s.r, workers_[w].first, workers_[w].second);
+        s.done = true;
+      },
+      what);
 }
 
 void Slam::AddSequentialEdges() {
@@ -205,6 +278,13 @@ void Slam::AddSequentialEdges() {
   std::vector<long> sequential_edge(keyframes_.size(), -1);  // per keyframe i: the edge (i-1, i)
   std::vector<bool> accepted(keyframes_.size(), false);      // ... from an accepted registration
   const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation_m, 5 * o_.sigma_rotation_deg * M_PI / 180);
+  std::vector<size_t> items;
+  for (size_t i = 1; i < keyframes_.size(); ++i)
+    if (motion_.SameSegment(keyframes_[i - 1].sequence, keyframes_[i - 1].timestamp, keyframes_[i].sequence,
+                            keyframes_[i].timestamp))
+      items.push_back(i);
+  std::vector<SequentialResult> side_by_side(keyframes_.size());
+  RegisterSequentialAll(items, &side_by_side, "sequential edges");
   for (size_t i = 1; i < keyframes_.size(); ++i) {
     hooks_.check_cancelled();
     const Keyframe& a = keyframes_[i - 1];
@@ -212,7 +292,8 @@ void Slam::AddSequentialEdges() {
     if (!motion_.SameSegment(a.sequence, a.timestamp, b.sequence, b.timestamp)) continue;
     Pose guess;
     RegistrationResult r;
-    const bool ok = RegisterSequential(i, &guess, &r);
+    const bool ok = side_by_side[i].done ? (guess = side_by_side[i].guess, r = side_by_side[i].r, side_by_side[i].ok)
+                                         : RegisterSequential(i, &guess, &r);
     PoseGraphEdge e;
     e.from = a.id;
     e.to = b.id;
@@ -250,12 +331,18 @@ void Slam::CalibrateAndRedo(const std::map<std::string, std::vector<std::pair<si
   // each is skewed by (k - 1) x its own turn, and registrations between
   // skewed scans turn too far or too short, the same way at every step.
   const std::vector<bool> changed = RedeskewKeyframes();
+  std::vector<size_t> items;
+  for (size_t i = 1; i < keyframes_.size(); ++i)
+    if (accepted[i] && (changed[i - 1] || changed[i])) items.push_back(i);
+  std::vector<SequentialResult> side_by_side(keyframes_.size());
+  RegisterSequentialAll(items, &side_by_side, "sequential edges (rectified scans)");
   int again = 0;
-  for (size_t i = 1; i < keyframes_.size(); ++i) {
-    if (!accepted[i] || !(changed[i - 1] || changed[i])) continue;
+  for (size_t i : items) {
     Pose guess;
     RegistrationResult r;
-    if (!RegisterSequential(i, &guess, &r)) continue;  // keeps the first result
+    const bool ok = side_by_side[i].done ? (guess = side_by_side[i].guess, r = side_by_side[i].r, side_by_side[i].ok)
+                                         : RegisterSequential(i, &guess, &r);
+    if (!ok) continue;  // keeps the first result
     PoseGraphEdge& e = graph_.edges[static_cast<size_t>(sequential_edge[i])];
     e.T_from_to = r.T_target_source;
     e.information = EdgeInformation(r, e.T_from_to);

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <memory>
 #include <set>
 #include <string>
@@ -95,6 +96,12 @@ class Slam {
   Slam(const SlamOptions& options, const WheelOdometry* odometry, Registrar registrar, Registrar refine,
        int threads, SlamHooks hooks);
 
+  // One (wide-gate, final-pass) registrar pair per worker thread, each
+  // running single-threaded: with wheel odometry the sequential
+  // registrations do not depend on each other, so they run side by side
+  // (the same results as one at a time; fewer synchronisations).
+  void SetWorkerRegistrars(std::vector<std::pair<Registrar, Registrar>> workers) { workers_ = std::move(workers); }
+
   // Keyframes of `scans` (time order; read(i) loads scan i in the rig frame).
   void SelectKeyframes(const std::vector<ScanStamp>& scans, const std::function<Cloud(size_t)>& read);
   // Sequential edges, rounds of joins, loops and optimisation, final checks.
@@ -121,6 +128,8 @@ class Slam {
 
  private:
   RegistrationResult Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target);
+  RegistrationResult Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target,
+                            const Registrar& refine);
   LoopCheckOptions LoopOptions(double rough_error) const;
   Refiner MakeRefiner();
   std::vector<RegistrationResult> CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
@@ -131,6 +140,24 @@ class Slam {
   // Keyframe i against i-1 from the motion guess (and its alternatives): true
   // when accepted (then `r`, refined); `guess`: the guess it started from.
   bool RegisterSequential(size_t i, Pose* guess, RegistrationResult* r);
+  bool RegisterSequential(size_t i, Pose* guess, RegistrationResult* r, const Registrar& registrar,
+                          const Registrar& refine);
+  struct SequentialResult {
+    bool done = false, ok = false;
+    Pose guess;
+    RegistrationResult r;
+  };
+  // fn(n, worker) for n in [0, count), side by side on the worker registrars
+  // (runs of consecutive n per worker); false (nothing run) without several
+  // workers. Hooks are called from this thread only; the first exception of
+  // any worker is rethrown once all stopped.
+  bool ForEachOnWorkers(size_t count, const std::function<void(size_t n, size_t worker)>& fn,
+                        const std::string& what);
+  // RegisterSequential of each keyframe of `items` (into out[i]), side by side
+  // on the worker registrars when there are several and the guesses come
+  // from the wheels; else nothing is done here. `what`: the progress label.
+  void RegisterSequentialAll(const std::vector<size_t>& items, std::vector<SequentialResult>* out,
+                             const std::string& what);
   // CalibrateOdometryYaw, then RedeskewKeyframes, the accepted sequential
   // registrations of the keyframes it changed redone (sequential_edge: per
   // keyframe i, the edge (i-1, i) or -1), and the initial estimate chained again.
@@ -157,6 +184,7 @@ class Slam {
   const WheelOdometry* odometry_;
   MotionModel motion_;
   Registrar registrar_, refine_registrar_;
+  std::vector<std::pair<Registrar, Registrar>> workers_;
   int threads_;
   SlamHooks hooks_;
   std::vector<Keyframe> keyframes_;  // sequences in time order, each in time order
@@ -171,6 +199,7 @@ class Slam {
   std::vector<JoinAttempt> attempts_;
   std::vector<SequenceJoin> sequence_joins_;
   SlamStats stats_;
+  std::mutex stats_mutex_;  // the counters Refine updates from worker threads
 };
 
 }  // namespace locforge::lidar

@@ -167,11 +167,34 @@ bool Slam::TryJoin(int A, int B, int round) {
     results.push_back(r);
     fine.push_back(precise);
   };
+  // Rough checks are queued, then run (side by side when there are worker
+  // registrars) and their loops added in the order they were queued: the
+  // same candidates as checking each at once.
+  struct RoughTask {
+    const Keyframe* a;
+    const Keyframe* b;
+    std::vector<Pose> guesses;
+    std::vector<RegistrationResult> found;
+  };
+  std::vector<RoughTask> queued;
   auto test = [&](const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses) {
     tested.insert({a.id, b.id});
     ++stats_.join_tests;
-    for (const auto& r : RoughCheck(registrar_, a, b, guesses, LoopOptions(o_.join_rough_error)))
-      add(a, b, r, false, false);
+    queued.push_back(RoughTask{&a, &b, guesses, {}});
+  };
+  auto run_queued = [&] {
+    const LoopCheckOptions lo = LoopOptions(o_.join_rough_error);
+    auto check = [&](RoughTask& t, const Registrar& registrar) {
+      t.found = RoughCheck(registrar, *t.a, *t.b, t.guesses, lo);
+    };
+    if (!ForEachOnWorkers(queued.size(), [&](size_t n, size_t w) { check(queued[n], workers_[w].first); }, ""))
+      for (RoughTask& t : queued) {
+        hooks_.check_cancelled();
+        check(t, registrar_);
+      }
+    for (const RoughTask& t : queued)
+      for (const auto& r : t.found) add(*t.a, *t.b, r, false, false);
+    queued.clear();
   };
   // Seeds: B's keyframes within join_seed_radius of its start p0, every
   // loop_stride-th, nearest first; for each turn H about p0, against the
@@ -228,6 +251,7 @@ bool Slam::TryJoin(int A, int B, int round) {
       ++places;
     }
   }
+  run_queued();
 
   // Headings the places found, tried at the start too: a rough check starts
   // from the turns above, up to half a step off, and may not reach a heading
@@ -247,6 +271,7 @@ bool Slam::TryJoin(int A, int B, int round) {
       place_yaws.push_back(y);
   }
   seed(place_yaws);
+  run_queued();
 
   // The frames suggested, judged by the whole overlap.
   JoinConsensusOptions agreement;

@@ -22,6 +22,13 @@ struct SlamOptions {
   // without a true counterpart (people walking through the scans, surfaces
   // seen from one side), and they pull a registration toward zero motion.
   double refine_correspondence_distance_m = 0.3;
+  // The wide-gate passes (rough checks, the first pass of sequential and
+  // loop registrations) only seed that final pass, which converges fully:
+  // registration's own stop (GICP: 1e-4 rad) there is wasted work. These
+  // key=value overrides of registration's parameters apply to them (keys the
+  // back-end does not declare are skipped): 20x / 10x looser for GICP, half
+  // the iterations of the LiDAR half (plugins/slam/README.md, throughput).
+  std::vector<std::string> coarse_params = {"rotation_epsilon=0.002", "translation_epsilon=0.001"};
   // Registration edges' information: "registration" (the back-end's 6x6
   // Hessian moved into the edge's coordinates and rescaled so its strongest
   // directions have the sigmas, weaker ones down to information_max_ratio x

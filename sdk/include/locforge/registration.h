@@ -113,9 +113,13 @@ class RegistrationBackend {
                            const Pose& initial_T_target_source, int threads = 1) const;
 
   const std::string& name() const { return name_; }
+  // Whether the component's stage declares the parameter `name` (its
+  // metadata; false for a component wrapped from a table).
+  bool Declares(const std::string& param) const;
 
  private:
   void Release() noexcept;
+  std::vector<std::string> parameters_;  // declared by the stage (Create)
   const LfRegistrationInterface* table_ = nullptr;
   void* instance_ = nullptr;
   std::string name_;

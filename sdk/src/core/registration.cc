@@ -2,6 +2,7 @@
 // forms, and the caller-side RegistrationBackend.
 #include "locforge/registration.h"
 
+#include <algorithm>
 #include <cstring>
 
 namespace locforge {
@@ -123,7 +124,14 @@ RegistrationBackend RegistrationBackend::Create(
     release();
     throw Error(stage_id + ": malformed registration interface table");
   }
-  return RegistrationBackend(table, instance, stage_id, release);
+  RegistrationBackend backend(table, instance, stage_id, release);
+  for (uint32_t i = 0; info->params != nullptr && i < info->num_params; ++i)
+    if (info->params[i].name != nullptr) backend.parameters_.emplace_back(info->params[i].name);
+  return backend;
+}
+
+bool RegistrationBackend::Declares(const std::string& param) const {
+  return std::find(parameters_.begin(), parameters_.end(), param) != parameters_.end();
 }
 
 RegistrationBackend::RegistrationBackend(const LfRegistrationInterface* table, void* instance,
@@ -134,7 +142,7 @@ RegistrationBackend::RegistrationBackend(const LfRegistrationInterface* table, v
 }
 
 RegistrationBackend::RegistrationBackend(RegistrationBackend&& o) noexcept
-    : table_(o.table_), instance_(o.instance_), name_(std::move(o.name_)),
+    : parameters_(std::move(o.parameters_)), table_(o.table_), instance_(o.instance_), name_(std::move(o.name_)),
       release_(std::move(o.release_)) {
   o.table_ = nullptr;
   o.instance_ = nullptr;
@@ -144,6 +152,7 @@ RegistrationBackend::RegistrationBackend(RegistrationBackend&& o) noexcept
 RegistrationBackend& RegistrationBackend::operator=(RegistrationBackend&& o) noexcept {
   if (this != &o) {
     Release();
+    parameters_ = std::move(o.parameters_);
     table_ = o.table_;
     instance_ = o.instance_;
     name_ = std::move(o.name_);
