@@ -71,18 +71,24 @@ Cloud VoxelDownsample(const Cloud& cloud, double voxel) {
     }
     keys[i] = key;
   }
+  // Room for a cell per point: a scan at 0.1 m keeps half its points, so a
+  // smaller table rehashes several times per scan.
   std::unordered_map<uint64_t, uint32_t> slot_of;
-  slot_of.reserve(cloud.points.size() / 4 + 16);
+  slot_of.reserve(cloud.points.size() + 16);
   std::vector<Eigen::Vector3d> sum;
   std::vector<double> time_sum;
   std::vector<int> count;
   std::vector<uint64_t> slot_key;
+  sum.reserve(cloud.points.size());
+  count.reserve(cloud.points.size());
+  slot_key.reserve(cloud.points.size());
   const bool timed = cloud.has_times();
+  if (timed) time_sum.reserve(cloud.points.size());
   for (size_t i = 0; i < keys.size(); ++i) {
     const auto [it, inserted] = slot_of.try_emplace(keys[i], static_cast<uint32_t>(sum.size()));
     if (inserted) {
       sum.push_back(Eigen::Vector3d::Zero());
-      time_sum.push_back(0);
+      if (timed) time_sum.push_back(0);
       count.push_back(0);
       slot_key.push_back(keys[i]);
     }
@@ -90,12 +96,14 @@ Cloud VoxelDownsample(const Cloud& cloud, double voxel) {
     if (timed) time_sum[it->second] += cloud.times[i];
     ++count[it->second];
   }
-  std::vector<uint32_t> order(sum.size());
-  for (uint32_t s = 0; s < order.size(); ++s) order[s] = s;
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return slot_key[a] < slot_key[b]; });
+  // Cells in key order: the keys themselves sorted with their slots (one
+  // contiguous array, no indirection in the comparisons; keys are unique).
+  std::vector<std::pair<uint64_t, uint32_t>> cells(sum.size());
+  for (uint32_t s = 0; s < cells.size(); ++s) cells[s] = {slot_key[s], s};
+  std::sort(cells.begin(), cells.end());
   Cloud out;
-  out.points.reserve(order.size());
-  for (uint32_t s : order) {
+  out.points.reserve(cells.size());
+  for (const auto& [key, s] : cells) {
     out.points.push_back((sum[s] / count[s]).cast<float>());
     if (timed) out.times.push_back(time_sum[s] / count[s]);
   }

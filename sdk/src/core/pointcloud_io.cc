@@ -226,21 +226,46 @@ std::vector<Field> OutputFields(const PointCloud& cloud, const PointAttributes* 
   return f;
 }
 
-// Appends point k's records (binary or ascii, fields as from OutputFields).
-void AppendRecord(const PointCloud& c, const PointAttributes* a, const std::vector<Field>& fields,
-                  size_t k, PointCloudEncoding enc, std::string* out) {
+// What an output field holds, resolved from its name once per file (not per point).
+enum class Source { kNone, kX, kY, kZ, kNx, kNy, kNz, kIntensity, kRing, kTime };
+
+std::vector<Source> SourcesOf(const std::vector<Field>& fields) {
+  std::vector<Source> out;
   for (const Field& f : fields) {
-    double v = 0;
     const std::string& n = f.name;
-    if (n == "x") v = c.points[k].x();
-    else if (n == "y") v = c.points[k].y();
-    else if (n == "z") v = c.points[k].z();
-    else if (n == "nx" || n == "normal_x") v = c.normals[k].x();
-    else if (n == "ny" || n == "normal_y") v = c.normals[k].y();
-    else if (n == "nz" || n == "normal_z") v = c.normals[k].z();
-    else if (n == "intensity") v = a->intensity[k];
-    else if (n == "ring") v = a->ring[k];
-    else if (n == "time") v = c.times[k];
+    out.push_back(n == "x" ? Source::kX
+                  : n == "y" ? Source::kY
+                  : n == "z" ? Source::kZ
+                  : (n == "nx" || n == "normal_x") ? Source::kNx
+                  : (n == "ny" || n == "normal_y") ? Source::kNy
+                  : (n == "nz" || n == "normal_z") ? Source::kNz
+                  : n == "intensity" ? Source::kIntensity
+                  : n == "ring" ? Source::kRing
+                  : n == "time" ? Source::kTime
+                                : Source::kNone);
+  }
+  return out;
+}
+
+// Appends point k's records (binary or ascii, fields as from OutputFields,
+// `sources` = SourcesOf(fields)).
+void AppendRecord(const PointCloud& c, const PointAttributes* a, const std::vector<Field>& fields,
+                  const std::vector<Source>& sources, size_t k, PointCloudEncoding enc, std::string* out) {
+  for (size_t i = 0; i < fields.size(); ++i) {
+    const Field& f = fields[i];
+    double v = 0;
+    switch (sources[i]) {
+      case Source::kX: v = c.points[k].x(); break;
+      case Source::kY: v = c.points[k].y(); break;
+      case Source::kZ: v = c.points[k].z(); break;
+      case Source::kNx: v = c.normals[k].x(); break;
+      case Source::kNy: v = c.normals[k].y(); break;
+      case Source::kNz: v = c.normals[k].z(); break;
+      case Source::kIntensity: v = a->intensity[k]; break;
+      case Source::kRing: v = a->ring[k]; break;
+      case Source::kTime: v = c.times[k]; break;
+      case Source::kNone: break;
+    }
     if (enc == PointCloudEncoding::kBinary) {
       char buf[8];
       if (f.kind == 'f' && f.size == 4) {
@@ -361,7 +386,8 @@ std::string EncodePly(const PointCloud& cloud, PointCloudEncoding enc,
   for (const Field& f : fields)
     out += std::string("property ") + PlyTypeName(f.kind, f.size) + " " + f.name + "\n";
   out += "end_header\n";
-  for (size_t k = 0; k < cloud.size(); ++k) AppendRecord(cloud, attributes, fields, k, enc, &out);
+  const std::vector<Source> sources = SourcesOf(fields);
+  for (size_t k = 0; k < cloud.size(); ++k) AppendRecord(cloud, attributes, fields, sources, k, enc, &out);
   return out;
 }
 
@@ -454,7 +480,8 @@ std::string EncodePcd(const PointCloud& cloud, PointCloudEncoding enc,
                     "\nSIZE" + sizes + "\nTYPE" + types + "\nCOUNT" + counts + "\nWIDTH " + n +
                     "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + n + "\nDATA " +
                     (enc == PointCloudEncoding::kBinary ? "binary" : "ascii") + "\n";
-  for (size_t k = 0; k < cloud.size(); ++k) AppendRecord(cloud, attributes, fields, k, enc, &out);
+  const std::vector<Source> sources = SourcesOf(fields);
+  for (size_t k = 0; k < cloud.size(); ++k) AppendRecord(cloud, attributes, fields, sources, k, enc, &out);
   return out;
 }
 
