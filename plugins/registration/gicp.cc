@@ -88,7 +88,7 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
   static StageMeta Meta() {
     StageMeta meta = {"registration", "gicp",
             "Generalized-ICP (Segal 2009), Eigen + OpenMP, small_gicp-style", {}, {}};
-    meta.version = "1.4.0";
+    meta.version = "1.5.0";
     return meta;
   }
   explicit Gicp(GicpOptions o)
@@ -106,7 +106,7 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
                        std::to_string(target.points.size()) + ")");
 
     const GicpInputs in{&source.points, &source.covariances, &target.points, &target.covariances,
-                        &target.tree};
+                        &target.tree, &target.neighbors};
     FactorOptions f;
     f.max_correspondence_distance = o.max_correspondence_distance;
     f.kernel = KernelOf(o.robust_kernel);

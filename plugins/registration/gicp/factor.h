@@ -30,6 +30,11 @@ struct GicpInputs {
   const Points* target;
   const Covariances* target_cov;
   const KdTree* target_tree;
+  // Optional: the target's neighbour lists. With them, a search warm-started
+  // from a previous correspondence walks the lists first and keeps the
+  // answer when a certificate proves it the nearest (factor.cc), else asks
+  // the tree: the same pairs, at a fraction of the cost in later iterations.
+  const NeighborGraph* target_neighbors = nullptr;
 };
 
 struct FactorOptions {
@@ -43,6 +48,7 @@ struct LinearSystem {
   Vector6d b = Vector6d::Zero();
   double cost = 0;       // sum of rho(e) over inliers
   uint64_t inliers = 0;
+  uint64_t walked = 0;   // correspondence searches answered by the neighbour walk
 };
 
 // Deterministic for any thread count: points are summed in fixed blocks.

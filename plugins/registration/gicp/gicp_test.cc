@@ -68,6 +68,51 @@ TEST(KdTree, WarmStartedKNearestIsExact) {
   for (size_t i = 0; i < one.size(); ++i) ASSERT_TRUE(one[i] == three[i]) << i;
 }
 
+// Correspondences from the neighbour-list walk (certified, else the tree)
+// are those of cold tree searches: the linear systems of an optimizer's
+// iterations are bit-identical with and without the lists, and most
+// searches of the later iterations are answered by the walk.
+TEST(Factor, NeighbourWalkGivesTheTreesCorrespondences) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-4, 4);
+  std::normal_distribution<double> noise(0, 0.01);
+  PointCloud cloud;  // a floor and two walls, 0.1 m apart on average
+  for (int i = 0; i < 6000; ++i) {
+    const double a = u(rng), b = u(rng);
+    const int face = i % 3;
+    const Eigen::Vector3d p = face == 0 ? Eigen::Vector3d(a, b, noise(rng))
+                              : face == 1 ? Eigen::Vector3d(a, 4 + noise(rng), 0.4 * (b + 4))
+                                          : Eigen::Vector3d(-4 + noise(rng), a, 0.4 * (b + 4));
+    cloud.points.push_back(p.cast<float>());
+  }
+  const PreprocessedCloud target = Preprocess(cloud, PreprocessOptions{0, 20, 1e-3}, 2);
+  ASSERT_EQ(target.neighbors.k, 20);
+  Points source = target.points;
+  for (auto& p : source) p += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+  const Covariances source_cov = target.covariances;
+  GicpInputs cold{&source, &source_cov, &target.points, &target.covariances, &target.tree};
+  GicpInputs warm = cold;
+  warm.target_neighbors = &target.neighbors;
+  FactorOptions o;
+  o.max_correspondence_distance = 0.3;
+  o.kernel = RobustKernel::kCauchy;
+  o.kernel_width = 0.25;
+  std::vector<int> pairs(source.size(), -1);
+  for (int it = 0; it < 5; ++it) {  // a converging sequence of poses, as an optimizer's
+    const double s = 0.05 / (1 << it);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(s, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(s, -s, 0.2 * s);
+    const LinearSystem a = Linearize(cold, T, o, 1);
+    const LinearSystem b = Linearize(warm, T, o, 2, &pairs);
+    ASSERT_EQ(a.inliers, b.inliers) << it;
+    ASSERT_EQ(a.cost, b.cost) << it;
+    ASSERT_TRUE(a.H == b.H) << it;
+    ASSERT_TRUE(a.b == b.b) << it;
+    if (it > 0) EXPECT_GT(b.walked, b.inliers / 2) << it;  // the walk answered most searches
+  }
+}
+
 TEST(Preprocess, PlaneCovarianceHasTheNormalAsItsSmallAxis) {
   Points plane;
   for (int i = 0; i < 30; ++i)

@@ -1,6 +1,7 @@
 #include "preprocess.h"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -124,8 +125,14 @@ Eigen::Matrix3d PlaneCovariance(const Points& points, const Eigen::Vector3d& q, 
 }  // namespace
 
 Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k, double epsilon,
-                                int threads) {
+                                int threads, NeighborGraph* graph) {
   Covariances out(points.size());
+  const int listed = std::max(0, std::min<int>(k, static_cast<int>(points.size())));
+  if (graph) {
+    graph->k = listed;
+    graph->ids.assign(points.size() * static_cast<size_t>(listed), -1);
+    graph->radius.assign(points.size(), std::numeric_limits<double>::infinity());
+  }
   const std::vector<int>& order = tree.order();
 #pragma omp parallel num_threads(threads)
   {
@@ -147,6 +154,11 @@ Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k,
       const int expected = std::min<int>(k, static_cast<int>(points.size()));
       tree.KNearest(points[i], k, &idx, &d2, bound);
       if (static_cast<int>(idx.size()) < expected) tree.KNearest(points[i], k, &idx, &d2);  // cannot happen; cheap insurance
+      if (graph && static_cast<int>(idx.size()) == listed && listed > 0) {
+        std::copy(idx.begin(), idx.end(), graph->ids.begin() + static_cast<int64_t>(i) * listed);
+        // Fewer points than k: every point is listed, so nothing lies beyond.
+        if (listed == k) graph->radius[i] = std::sqrt(d2.back());
+      }
       if (static_cast<int>(idx.size()) == expected) {
         previous = i;
         previous_radius = std::sqrt(d2.back());
@@ -163,8 +175,10 @@ Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k,
 PreprocessedCloud Preprocess(const PointCloud& cloud, const PreprocessOptions& o, int threads) {
   Points points = VoxelDownsample(cloud, o.voxel_size);
   KdTree tree(points);
-  Covariances covariances = EstimateCovariances(points, tree, o.k_neighbors, o.covariance_epsilon, threads);
-  return PreprocessedCloud{std::move(points), std::move(tree), std::move(covariances)};
+  NeighborGraph neighbors;
+  Covariances covariances =
+      EstimateCovariances(points, tree, o.k_neighbors, o.covariance_epsilon, threads, &neighbors);
+  return PreprocessedCloud{std::move(points), std::move(tree), std::move(covariances), std::move(neighbors)};
 }
 
 }  // namespace locforge::gicp

@@ -27,8 +27,19 @@ Points VoxelDownsample(const PointCloud& cloud, double voxel_size);  // = of ToP
 // the local normal 1/epsilon times more than within the plane. Points with
 // fewer than 3 neighbours get epsilon-free identity (point-to-point).
 // Each point's covariance depends on nothing else: same for any thread count.
+// The k nearest neighbours of every point (itself included), kept from the
+// covariance searches: ids[i * k ...] and radius[i], the distance to the k-th
+// (infinite when the cloud has at most k points). Every point strictly closer
+// than radius[i] to point i is in its list: what lets factor.cc certify a
+// nearest neighbour found by walking the lists (factor.h).
+struct NeighborGraph {
+  int k = 0;
+  std::vector<int> ids;
+  std::vector<double> radius;
+};
+
 Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k, double epsilon,
-                                int threads);
+                                int threads, NeighborGraph* graph = nullptr);
 
 struct PreprocessOptions {
   double voxel_size = 0;  // 0 = no downsampling
@@ -45,6 +56,7 @@ struct PreprocessedCloud {
   Points points;
   KdTree tree;
   Covariances covariances;
+  NeighborGraph neighbors;
 };
 
 // Deterministic: the same cloud and options give bit-identical results for
