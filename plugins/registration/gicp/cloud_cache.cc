@@ -57,11 +57,6 @@ std::shared_ptr<const PreprocessedCloud> CloudCache::FindLocked(uint64_t hash, c
 }
 
 void CloudCache::KeepLocked(std::shared_ptr<const Entry> entry) {
-  {
-    SharedIndex& index = Shared();
-    std::lock_guard<std::mutex> lock(index.mutex);
-    index.entries.push_back(std::shared_ptr<const void>(entry));
-  }
   entries_.push_front(std::move(entry));
   if (entries_.size() > capacity_) entries_.pop_back();
   stats_.entries = entries_.size();
@@ -95,9 +90,7 @@ std::shared_ptr<const PreprocessedCloud> CloudCache::Find(const PointCloud& clou
   }
   ++stats_.hits;
   ++stats_.shared_hits;
-  entries_.push_front(found);  // already indexed
-  if (entries_.size() > capacity_) entries_.pop_back();
-  stats_.entries = entries_.size();
+  KeepLocked(found);  // already indexed
   return found->value;
 }
 
@@ -108,6 +101,11 @@ std::shared_ptr<const PreprocessedCloud> CloudCache::Insert(const PointCloud& cl
   auto fresh = std::make_shared<const Entry>(Entry{hash, o, cloud.points, std::move(value)});  // built outside the lock
   std::lock_guard<std::mutex> lock(mutex_);
   if (auto stored = FindLocked(hash, cloud, o)) return stored;
+  {
+    SharedIndex& index = Shared();
+    std::lock_guard<std::mutex> shared_lock(index.mutex);
+    index.entries.push_back(std::shared_ptr<const void>(fresh));
+  }
   KeepLocked(fresh);
   return fresh->value;
 }

@@ -61,8 +61,7 @@ class CloudCache {
   // Caller holds mutex_.
   std::shared_ptr<const PreprocessedCloud> FindLocked(uint64_t hash, const PointCloud& cloud,
                                                       const PreprocessOptions& o);
-  // Keeps `entry` in front (evicting beyond the capacity) and indexes it for
-  // the other caches. Caller holds mutex_.
+  // Keeps `entry` in front (evicting beyond the capacity). Caller holds mutex_.
   void KeepLocked(std::shared_ptr<const Entry> entry);
 
   const size_t capacity_;

@@ -138,22 +138,9 @@ bool KdTree::NearestFrom(const Eigen::Vector3d& q, double max_sq_dist, int* inde
 
 bool KdTree::Nearest(const Eigen::Vector3d& q, double max_sq_dist, int* index,
                      double* sq_dist) const {
-  struct Best {
-    double d2;
-    int pos = -1;
-    double bound() const { return d2; }
-    void Add(int i, double d) {
-      if (d < d2) {
-        d2 = d;
-        pos = i;
-      }
-    }
-  } best{max_sq_dist};
-  if (nodes_.empty()) return false;
-  SearchFromRoot(q, best);
-  if (best.pos < 0) return false;
-  *index = order_[best.pos];
-  *sq_dist = best.d2;
+  int from = -1;  // no hint: a cold search
+  if (!NearestFrom(q, max_sq_dist, &from, sq_dist)) return false;
+  *index = from;
   return true;
 }
 

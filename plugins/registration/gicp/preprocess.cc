@@ -127,7 +127,7 @@ Eigen::Matrix3d PlaneCovariance(const Points& points, const Eigen::Vector3d& q, 
 Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k, double epsilon,
                                 int threads, NeighborGraph* graph) {
   Covariances out(points.size());
-  const int listed = std::max(0, std::min<int>(k, static_cast<int>(points.size())));
+  const int listed = std::max(0, std::min<int>(k, static_cast<int>(points.size())));  // neighbours per point
   if (graph) {
     graph->k = listed;
     graph->ids.assign(points.size() * static_cast<size_t>(listed), -1);
@@ -151,15 +151,15 @@ Covariances EstimateCovariances(const Points& points, const KdTree& tree, int k,
         const double r = previous_radius + (points[i] - points[previous]).norm();
         bound = r * r * (1 + 1e-12) + 1e-300;  // never below the k-th distance by rounding
       }
-      const int expected = std::min<int>(k, static_cast<int>(points.size()));
       tree.KNearest(points[i], k, &idx, &d2, bound);
-      if (static_cast<int>(idx.size()) < expected) tree.KNearest(points[i], k, &idx, &d2);  // cannot happen; cheap insurance
-      if (graph && static_cast<int>(idx.size()) == listed && listed > 0) {
+      if (static_cast<int>(idx.size()) < listed) tree.KNearest(points[i], k, &idx, &d2);  // cannot happen; cheap insurance
+      const bool complete = listed > 0 && static_cast<int>(idx.size()) == listed;
+      if (graph && complete) {
         std::copy(idx.begin(), idx.end(), graph->ids.begin() + static_cast<int64_t>(i) * listed);
         // Fewer points than k: every point is listed, so nothing lies beyond.
         if (listed == k) graph->radius[i] = std::sqrt(d2.back());
       }
-      if (static_cast<int>(idx.size()) == expected) {
+      if (complete) {
         previous = i;
         previous_radius = std::sqrt(d2.back());
       } else {

@@ -273,6 +273,15 @@ void Slam::RegisterSequentialAll(const std::vector<size_t>& items, std::vector<S
       what);
 }
 
+bool Slam::RegisteredSequential(size_t i, const std::vector<SequentialResult>& side_by_side, Pose* guess,
+                                RegistrationResult* r) {
+  const SequentialResult& s = side_by_side[i];
+  if (!s.done) return RegisterSequential(i, guess, r);
+  *guess = s.guess;
+  *r = s.r;
+  return s.ok;
+}
+
 void Slam::AddSequentialEdges() {
   std::map<std::string, std::vector<std::pair<size_t, double>>> odometry_edges;
   std::vector<long> sequential_edge(keyframes_.size(), -1);  // per keyframe i: the edge (i-1, i)
@@ -292,8 +301,7 @@ void Slam::AddSequentialEdges() {
     if (!motion_.SameSegment(a.sequence, a.timestamp, b.sequence, b.timestamp)) continue;
     Pose guess;
     RegistrationResult r;
-    const bool ok = side_by_side[i].done ? (guess = side_by_side[i].guess, r = side_by_side[i].r, side_by_side[i].ok)
-                                         : RegisterSequential(i, &guess, &r);
+    const bool ok = RegisteredSequential(i, side_by_side, &guess, &r);
     PoseGraphEdge e;
     e.from = a.id;
     e.to = b.id;
@@ -340,8 +348,7 @@ void Slam::CalibrateAndRedo(const std::map<std::string, std::vector<std::pair<si
   for (size_t i : items) {
     Pose guess;
     RegistrationResult r;
-    const bool ok = side_by_side[i].done ? (guess = side_by_side[i].guess, r = side_by_side[i].r, side_by_side[i].ok)
-                                         : RegisterSequential(i, &guess, &r);
+    const bool ok = RegisteredSequential(i, side_by_side, &guess, &r);
     if (!ok) continue;  // keeps the first result
     PoseGraphEdge& e = graph_.edges[static_cast<size_t>(sequential_edge[i])];
     e.T_from_to = r.T_target_source;

@@ -158,6 +158,9 @@ class Slam {
   // from the wheels; else nothing is done here. `what`: the progress label.
   void RegisterSequentialAll(const std::vector<size_t>& items, std::vector<SequentialResult>* out,
                              const std::string& what);
+  // Keyframe i's result from RegisterSequentialAll when it ran there, else RegisterSequential now.
+  bool RegisteredSequential(size_t i, const std::vector<SequentialResult>& side_by_side, Pose* guess,
+                            RegistrationResult* r);
   // CalibrateOdometryYaw, then RedeskewKeyframes, the accepted sequential
   // registrations of the keyframes it changed redone (sequential_edge: per
   // keyframe i, the edge (i-1, i) or -1), and the initial estimate chained again.
