@@ -152,8 +152,9 @@ struct ResolvedNode {
   std::string name;
   const runtime::StageEntry* stage = nullptr;
   std::map<std::string, std::string> params;  // canonical, defaults filled, PATHs absolute
-  // Component parameters: the chosen stage and its version ("kind/name 1.0.0"),
-  // part of the cache key as the node's results depend on them.
+  // Component parameters: the chosen stage, its version and its parameter values,
+  // defaults filled ("kind/name 1.0.0 a=1 b=x"), part of the cache key as the
+  // node's results depend on them.
   std::map<std::string, std::string> components;
   std::vector<ResolvedInput> inputs;          // sorted by port name
 };

@@ -198,7 +198,9 @@ void VariantChecker::CheckParams(const NodeSpec& node, const runtime::StageEntry
          "node '" + node.name + "': parameters refused by stage '" + stage.id + "': " + e.what());
     return;
   }
-  // Every component parameter, given or default: its stage and version key the results.
+  // Every component parameter, given or default: its stage, version and every parameter
+  // value, given or the component's default, key the results (a default changed without a
+  // version bump must not reuse results computed with the old one).
   for (const auto& d : stage.params) {
     if (d.type != LF_PARAM_COMPONENT) continue;
     ComponentSpec spec;
@@ -208,8 +210,15 @@ void VariantChecker::CheckParams(const NodeSpec& node, const runtime::StageEntry
         given_value != node.params.end() ? given_value->second.value_where : node.stage_where;
     const std::string what = "node '" + node.name + "': parameter '" + d.name + "' (component" +
                              (given_value == node.params.end() ? ", default" : "") + ")";
-    if (const runtime::StageEntry* c = FindComponent(spec.stage, d, where, what))
-      out->components[d.name] = c->id + " " + c->version;
+    if (const runtime::StageEntry* c = FindComponent(spec.stage, d, where, what)) {
+      std::string text = c->id + " " + c->version;
+      for (const auto& cd : c->params) {
+        if (cd.flags & LF_PARAM_NO_CACHE_KEY) continue;
+        const std::string* given_param = spec.Find(cd.name);
+        text += " " + cd.name + "=" + (given_param ? *given_param : cd.default_value);
+      }
+      out->components[d.name] = text;
+    }
   }
 }
 

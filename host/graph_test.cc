@@ -407,9 +407,14 @@ nodes:
             "registration/fake_icp" + sep + "iterations=5" + sep + "mode=slow");
   EXPECT_EQ(nodes.at("c")->params.at("backend"), "registration/fake_icp" + sep + "iterations=20");
   EXPECT_EQ(nodes.at("d")->params.at("backend"), "registration/fake_icp");
-  // The chosen stage and its version key the node's results.
-  EXPECT_EQ(nodes.at("a")->components.at("backend"), "registration/fake_icp 2.0.0");
-  EXPECT_NE(CacheKeyText(*nodes.at("a"), {}).find("component backend=registration/fake_icp 2.0.0"),
+  // The chosen stage, its version and all its parameter values, given or default, key the
+  // node's results: a default changed without a version bump changes the key.
+  EXPECT_EQ(nodes.at("a")->components.at("backend"),
+            "registration/fake_icp 2.0.0 iterations=10 mode=fast");
+  EXPECT_EQ(nodes.at("b")->components.at("backend"),
+            "registration/fake_icp 2.0.0 iterations=5 mode=slow");
+  EXPECT_NE(CacheKeyText(*nodes.at("a"), {})
+                .find("component backend=registration/fake_icp 2.0.0 iterations=10 mode=fast"),
             std::string::npos);
   EXPECT_NE(CacheKey(*nodes.at("a"), {}), CacheKey(*nodes.at("b"), {}));
   EXPECT_EQ(CacheKey(*nodes.at("a"), {}), CacheKey(*nodes.at("d"), {}));

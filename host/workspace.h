@@ -49,8 +49,8 @@ std::string PathStamp(const fs::path& path);
 
 // The text hashed into a node's cache key: stage id, the stage's version (its
 // own, else its plugin's), SDK version, canonical params (not
-// LF_PARAM_NO_CACHE_KEY ones), PATH stamps, the stage and version of each
-// component parameter, and the keys of the input nodes (`input_keys` maps
+// LF_PARAM_NO_CACHE_KEY ones), PATH stamps, the stage, version and parameter
+// values (defaults filled) of each component parameter, and the keys of the input nodes (`input_keys` maps
 // node name -> key).
 std::string CacheKeyText(const ResolvedNode& node,
                          const std::map<std::string, std::string>& input_keys);
