@@ -129,7 +129,10 @@ bool ReadYamlValue(const YAML::Node& node, const std::function<SourceLocation(co
 struct RawValue {
   Value value;
   SourceLocation where;
-  bool from_command_line = false;
+  // Where relative paths in it resolve: empty for a value written in this
+  // graph file (its folder); the current directory for a --set value; the
+  // includer's base for a value an including graph passed in.
+  fs::path base_dir;
   // A variable declared `!required DOC`: it has no default, so the command
   // line (or the including graph) must give it.
   bool required = false;
@@ -185,12 +188,17 @@ class GraphParser {
   void ReadNodes(const YAML::Node& nodes, GraphVariant* variant);
   void ApplyNodeOverrides(GraphVariant* variant);
 
-  // Substitution for the current variant. `from_cli` is set when a --set
-  // value went into the result.
-  Value Substitute(const Value& raw, const SourceLocation& where, bool* from_cli);
+  // Substitution for the current variant. `base` is set to the base folder
+  // of a substituted variable that was not written in this file (a --set or
+  // an includer's value), so its relative paths resolve where they were
+  // written; left as is otherwise.
+  Value Substitute(const Value& raw, const SourceLocation& where, fs::path* base);
   bool SubstituteScalar(const std::string& s, const SourceLocation& where, Value* out,
-                        bool* from_cli);
-  bool LookupVar(const std::string& name, const SourceLocation& where, Value* out, bool* from_cli);
+                        fs::path* base);
+  bool LookupVar(const std::string& name, const SourceLocation& where, Value* out, fs::path* base);
+  // The folder relative paths of a value resolve against: `base` when a
+  // foreign variable went in, else this file's folder.
+  fs::path BaseDir(const fs::path& base) const { return base.empty() ? dir_ : base; }
   std::vector<std::string> KnownNames() const;
 
   fs::path file_;
@@ -203,7 +211,7 @@ class GraphParser {
   std::vector<Override> node_overrides_;
   // Per-variant state.
   std::map<std::string, std::string> matrix_env_;
-  std::map<std::string, std::pair<Value, bool>> resolved_vars_;
+  std::map<std::string, std::pair<Value, fs::path>> resolved_vars_;  // value, base_dir
   std::set<std::string> resolving_;
   std::vector<IncludeSpec> includes_;
   int depth_ = 0;  // include nesting
@@ -347,7 +355,7 @@ void GraphParser::ApplyVarOverrides(const std::vector<Override>& sets) {
       continue;
     }
     if (vars_.count(set.key)) {
-      vars_[set.key] = RawValue{ParseCommandLineValue(set.value, where, errors_), where, true, false, ""};
+      vars_[set.key] = RawValue{ParseCommandLineValue(set.value, where, errors_), where, cwd_, false, ""};
       continue;
     }
     auto m = std::find_if(matrix_.begin(), matrix_.end(),
@@ -400,14 +408,14 @@ std::vector<GraphVariant> GraphParser::ExpandMatrix() {
 }
 
 bool GraphParser::LookupVar(const std::string& name, const SourceLocation& where, Value* out,
-                            bool* from_cli) {
+                            fs::path* base) {
   if (auto m = matrix_env_.find(name); m != matrix_env_.end()) {
     *out = Value{{m->second}, false};
     return true;
   }
   if (auto r = resolved_vars_.find(name); r != resolved_vars_.end()) {
     *out = r->second.first;
-    *from_cli |= r->second.second;
+    if (!r->second.second.empty()) *base = r->second.second;
     return true;
   }
   auto v = vars_.find(name);
@@ -422,22 +430,22 @@ bool GraphParser::LookupVar(const std::string& name, const SourceLocation& where
              "' is defined in terms of itself (expected no cycle of ${...} references)");
     return false;
   }
-  bool cli = v->second.from_command_line;
+  fs::path var_base = v->second.base_dir;
   const size_t before = errors_->size();
-  Value value = Substitute(v->second.value, v->second.where, &cli);
+  Value value = Substitute(v->second.value, v->second.where, &var_base);
   resolving_.erase(name);
   if (errors_->size() != before) return false;
-  resolved_vars_[name] = {value, cli};
+  resolved_vars_[name] = {value, var_base};
   *out = value;
-  *from_cli |= cli;
+  if (!var_base.empty()) *base = var_base;
   return true;
 }
 
 bool GraphParser::SubstituteScalar(const std::string& s, const SourceLocation& where, Value* out,
-                                   bool* from_cli) {
+                                   fs::path* base) {
   // A scalar that is exactly ${x} takes x's value as is (a list stays a list).
   if (s.size() > 3 && s.compare(0, 2, "${") == 0 && s.back() == '}' && s.find('}') == s.size() - 1)
-    return LookupVar(s.substr(2, s.size() - 3), where, out, from_cli);
+    return LookupVar(s.substr(2, s.size() - 3), where, out, base);
   std::string result;
   size_t pos = 0;
   while (true) {
@@ -450,7 +458,7 @@ bool GraphParser::SubstituteScalar(const std::string& s, const SourceLocation& w
     }
     result += s.substr(pos, start - pos);
     Value v;
-    if (!LookupVar(s.substr(start + 2, end - start - 2), where, &v, from_cli)) return false;
+    if (!LookupVar(s.substr(start + 2, end - start - 2), where, &v, base)) return false;
     if (v.is_list || v.is_component) {
       Fail(where, "variable '" + s.substr(start + 2, end - start - 2) + "' is a " +
                       (v.is_list ? "list" : "component") + "; expected a scalar inside '" + s + "'");
@@ -464,20 +472,20 @@ bool GraphParser::SubstituteScalar(const std::string& s, const SourceLocation& w
   return true;
 }
 
-Value GraphParser::Substitute(const Value& raw, const SourceLocation& where, bool* from_cli) {
+Value GraphParser::Substitute(const Value& raw, const SourceLocation& where, fs::path* base) {
   if (raw.is_component) {
     Value out = raw;
     out.items.clear();
     Value stage;
-    if (SubstituteScalar(raw.scalar(), where, &stage, from_cli)) out.items.push_back(stage.scalar());
-    for (auto& p : out.params) p.value = Substitute(p.value, p.value_where, from_cli);
+    if (SubstituteScalar(raw.scalar(), where, &stage, base)) out.items.push_back(stage.scalar());
+    for (auto& p : out.params) p.value = Substitute(p.value, p.value_where, base);
     return out;
   }
   Value out;
   out.is_list = raw.is_list;
   for (const auto& item : raw.items) {
     Value v;
-    if (!SubstituteScalar(item, where, &v, from_cli)) continue;
+    if (!SubstituteScalar(item, where, &v, base)) continue;
     if ((v.is_list || v.is_component) && !raw.is_list) return v;  // "${var}" as the whole value
     if (v.is_component) {
       Fail(where, "a component variable cannot be a list element");
@@ -515,9 +523,9 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
       Fail(node.where, "node '" + node.name + "': 'stage: KIND/NAME' is required");
     } else {
       node.stage_where = At(stage);
-      bool cli = false;
+      fs::path base;
       node.stage =
-          Substitute(Value{{Unmask(stage.Scalar())}, false}, node.stage_where, &cli).scalar();
+          Substitute(Value{{Unmask(stage.Scalar())}, false}, node.stage_where, &base).scalar();
     }
     if (const YAML::Node params = body["params"]) {
       if (!params.IsMap() && !params.IsNull()) {
@@ -529,11 +537,11 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
           ParamValue pv;
           pv.key_where = At(p->first);
           pv.value_where = raw.where;
-          bool cli = false;
+          fs::path base;
           const size_t before = errors_->size();
-          pv.value = Substitute(raw.value, raw.where, &cli);
+          pv.value = Substitute(raw.value, raw.where, &base);
           pv.broken = errors_->size() != before;
-          pv.base_dir = cli ? cwd_ : dir_;
+          pv.base_dir = BaseDir(base);
           node.params[p->first.Scalar()] = pv;
         }
       }
@@ -551,9 +559,9 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
             Fail(raw.where, "input '" + in->first.Scalar() + "': expected NODE.PORT or a list of them");
             continue;
           }
-          bool cli = false;
+          fs::path base;
           const size_t before = errors_->size();
-          const Value v = Substitute(raw.value, raw.where, &cli);
+          const Value v = Substitute(raw.value, raw.where, &base);
           const SourceLocation key_where = spec.where;
           spec = WiresOf(v, raw.where);
           spec.where = key_where;
@@ -658,20 +666,18 @@ void GraphParser::ExpandInclude(const IncludeSpec& inc, GraphVariant* variant, G
   } catch (const std::exception& e) {
     return Fail(inc.where, "include '" + inc.name + "': " + e.what());
   }
-  // Values are substituted here, in the including graph's variables.
+  // Values are substituted here, in the including graph's variables. Relative
+  // paths among them resolve where each was written: this file's folder, or
+  // the current directory for a --set value.
   std::map<std::string, RawValue> values;
-  bool from_cli = false;
   for (const auto& [name, raw] : inc.vars) {
     const size_t before = errors_->size();
-    bool cli = false;
-    Value v = Substitute(raw.value, raw.where, &cli);
+    fs::path base;
+    Value v = Substitute(raw.value, raw.where, &base);
     if (errors_->size() != before) continue;
-    from_cli |= cli;
-    values[name] = RawValue{v, raw.where, true, false, ""};
+    values[name] = RawValue{v, raw.where, BaseDir(base), false, ""};
   }
-  // Relative paths among them resolve where they were written: this file's
-  // folder, or the current directory when a --set value went in.
-  GraphParser inner(inc.file, inc.display, from_cli ? cwd_ : dir_, errors_);
+  GraphParser inner(inc.file, inc.display, cwd_, errors_);
   inner.depth_ = depth_ + 1;
   std::vector<NodeSpec> nodes;
   inner.ParseIncluded(text, values, inc, &nodes, graph);
@@ -696,9 +702,9 @@ void GraphParser::ExpandInclude(const IncludeSpec& inc, GraphVariant* variant, G
                           inc.display + Hint(node_name, known) + "; nodes: " + JoinNames(known));
       continue;
     }
-    bool cli = false;
+    fs::path base;
     const size_t before = errors_->size();
-    const Value v = Substitute(raw.value, raw.where, &cli);
+    const Value v = Substitute(raw.value, raw.where, &base);
     if (v.is_component) {
       Fail(raw.where, "include '" + inc.name + "': input '" + target + "': expected NODE.PORT or a list of them");
       continue;
@@ -747,8 +753,8 @@ void GraphParser::ParseIncluded(const std::string& text, const std::map<std::str
   if (const YAML::Node paths = root["plugin_paths"]) {
     RawValue raw;
     if (ReadRaw(paths, "plugin_paths", &raw)) {
-      bool cli = false;
-      for (const auto& p : Substitute(raw.value, raw.where, &cli).items) {
+      fs::path base;
+      for (const auto& p : Substitute(raw.value, raw.where, &base).items) {
         const fs::path folder = (dir_ / p).lexically_normal();
         if (std::none_of(graph->plugin_paths.begin(), graph->plugin_paths.end(),
                          [&](const auto& known) { return known.first == folder; }))
@@ -780,9 +786,9 @@ void GraphParser::ApplyNodeOverrides(GraphVariant* variant) {
     }
     ParamValue pv;
     pv.key_where = pv.value_where = where;
-    bool cli = true;
+    fs::path base = cwd_;
     const size_t before = errors_->size();
-    pv.value = Substitute(ParseCommandLineValue(set.value, where, errors_), where, &cli);
+    pv.value = Substitute(ParseCommandLineValue(set.value, where, errors_), where, &base);
     pv.broken = errors_->size() != before;
     pv.base_dir = cwd_;
     node->params[param] = pv;
@@ -828,8 +834,8 @@ bool GraphParser::Parse(const std::string& text, const std::vector<Override>& se
   if (const YAML::Node paths = root["plugin_paths"]) {
     RawValue raw;
     if (ReadRaw(paths, "plugin_paths", &raw)) {
-      bool cli = false;
-      for (const auto& p : Substitute(raw.value, raw.where, &cli).items)
+      fs::path base;
+      for (const auto& p : Substitute(raw.value, raw.where, &base).items)
         graph->plugin_paths.emplace_back((dir_ / p).lexically_normal(), raw.where);
     }
   }

@@ -582,5 +582,43 @@ include:
   fs::remove_all(dir);
 }
 
+// Each value passed to an included graph keeps the base folder of where it was
+// written: a --set of one variable must not move the others' relative paths
+// (it did: every value of the include then resolved against the current directory).
+TEST(GraphParse, IncludedValuesResolveRelativePathsWhereEachWasWritten) {
+  const fs::path dir = locforge::testing::MakeTempDir("graph_include_paths");
+  fs::create_directories(dir / "configs/parts");
+  WriteFileAtomic(dir / "configs/parts/inner.yaml", R"(locforge: 1
+vars: {root: data, count: 1, own: own_data}
+nodes:
+  a: {stage: source/folder, params: {root: "${root}"}}
+  b: {stage: source/folder, params: {root: "${own}"}}
+  c: {stage: source/images, params: {count: "${count}"}}
+)");
+  const std::string outer = R"(locforge: 1
+vars: {root: ../data, count: 2}
+include:
+  x: {graph: parts/inner.yaml, vars: {root: "${root}", count: "${count}"}}
+)";
+  const fs::path file = dir / "configs/outer.yaml";
+  for (const std::vector<Override>& sets :
+       {std::vector<Override>{}, std::vector<Override>{{"count", "3"}}}) {
+    Graph g;
+    Diagnostics errors;
+    ASSERT_TRUE(ParseGraph(outer, file, sets, "/cwd", &g, &errors))
+        << (errors.empty() ? "" : errors[0].ToString());
+    const NodeSpec& a = NodeOf(g, "a", 0);
+    EXPECT_EQ(a.params.at("root").base_dir, dir / "configs") << sets.size() << " --set";
+    EXPECT_EQ(NodeOf(g, "b", 0).params.at("root").base_dir, dir / "configs/parts");
+    EXPECT_EQ(NodeOf(g, "c", 0).params.at("count").base_dir,
+              sets.empty() ? dir / "configs" : fs::path("/cwd"));
+  }
+  Graph g;
+  Diagnostics errors;
+  ASSERT_TRUE(ParseGraph(outer, file, {{"root", "mine"}}, "/cwd", &g, &errors));
+  EXPECT_EQ(NodeOf(g, "a", 0).params.at("root").base_dir, fs::path("/cwd"));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace locforge::host

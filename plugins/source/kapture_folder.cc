@@ -24,6 +24,8 @@ struct KaptureFolderOptions {
   bool copy_records_data = true;   // Copy images etc. (needed by stages reading pixels).
   std::vector<std::string> subfolders;  // Kapture roots under `path` merged into one (cameras only).
   std::string images;              // Regex: keep only the images whose path matches (cameras only).
+  int sample_every = 1;            // Of those, 1 in N per camera in time order (a sparse map).
+  bool sample_rest = false;        // Keep the other N-1 of every N instead (its queries).
   static void Declare(ParamSchema<KaptureFolderOptions>& s) {
     s.Add("path", &KaptureFolderOptions::path,
           "kapture root (sensors/, reconstruction/), or wire the kapture input").Path();
@@ -38,6 +40,13 @@ struct KaptureFolderOptions {
           "regular expression on image paths (after the sub-folder prefix): keep only the images "
           "it matches whole, with their poses; cameras only (e.g. \"map_.*\" and \"(val|test)_.*\" "
           "split one ground-truth kapture into map and queries). Empty: all");
+    s.Add("sample_every", &KaptureFolderOptions::sample_every,
+          "of the images kept, one in every N of each camera in time order (the 1st, the N+1-th, "
+          "...), with their poses; cameras only. E.g. 4: a sparse map of a recording. 1: all")
+        .Range(1, 1000);
+    s.Add("sample_rest", &KaptureFolderOptions::sample_rest,
+          "keep the other N-1 of every `sample_every` instead: the images a sparse map leaves "
+          "out, localized as its queries (the two selections partition the images)");
   }
   bool Check(std::string* why) const {
     for (const auto& sub : subfolders)
@@ -62,20 +71,21 @@ class KaptureFolder : public Stage<KaptureFolderOptions> {
             {{"kapture", "kapture.dataset", "the kapture root, instead of the path parameter (e.g. a ground truth "
               "made in the same graph)", LF_PORT_OPTIONAL}},
             {{"dataset", "kapture.dataset", "the dataset, re-emitted"}}};
-    meta.version = "1.1.0";
+    meta.version = "1.2.0";
     return meta;
   }
   using Stage::Stage;
   void Run(RunContext& ctx) override {
     const fs::path root = ctx.PathOrInput("source/kapture_folder", "path", options().path, "kapture");
-    if (!options().subfolders.empty() || !options().images.empty()) {
+    if (!options().subfolders.empty() || !options().images.empty() || options().sample_every > 1) {
       std::vector<MergeSource> sources;
       if (options().subfolders.empty()) sources.push_back({root, ""});
       for (const auto& sub : options().subfolders)
         sources.push_back({sub == "." ? root : root / sub,
                            sub == "." ? "" : fs::path(sub).generic_string()});
       const MergeReport r =
-          MergeCameraKaptures(sources, ctx.output_dir(), options().copy_records_data, options().images);
+          MergeCameraKaptures(sources, ctx.output_dir(), options().copy_records_data,
+                              {options().images, options().sample_every, options().sample_rest});
       std::string subs;
       for (const auto& sub : options().subfolders) subs += (subs.empty() ? "" : ", ") + sub;
       ctx.Info("kapture " + root.string() + " [" + subs + "] merged: " +

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <regex>
 #include <tuple>
 #include <set>
@@ -25,21 +26,24 @@ bool SamePose(const Pose& a, const Pose& b) {
 }  // namespace
 
 MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const fs::path& dst,
-                                bool copy_records_data, const std::string& image_regex) {
+                                bool copy_records_data, const ImageSelection& select) {
   if (sources.empty()) throw InputError("kapture merge: no source folder");
+  if (select.sample_every < 1)
+    throw ParamError("sample_every: " + std::to_string(select.sample_every) + " is not >= 1");
   std::regex keep;
   try {
-    keep = std::regex(image_regex);
+    keep = std::regex(select.regex);
   } catch (const std::regex_error& e) {
-    throw ParamError("images: '" + image_regex + "' is not a regular expression: " + e.what());
+    throw ParamError("images: '" + select.regex + "' is not a regular expression: " + e.what());
   }
-  const bool filtered = !image_regex.empty();
+  const bool filtered = !select.regex.empty() || select.sample_every > 1;
   std::set<std::pair<Timestamp, std::string>> kept_images;
   kp::Sensors sensors;
   kp::Rigs rigs;
   std::set<std::pair<std::string, std::string>> rig_entries;
   kp::Trajectories trajectories;
   std::vector<kp::DataRecord> records;
+  std::vector<fs::path> record_files;  // records[i]'s image file (copy_records_data)
   std::set<std::string> image_paths;
   MergeReport report;
   for (const auto& source : sources) {
@@ -83,18 +87,35 @@ MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const f
                                 ? k.ExistingRecordDataPath(r.path, (source.root / records_file).string())
                                 : fs::path();
       if (!source.prefix.empty()) r.path = source.prefix + "/" + r.path;
-      if (filtered && !std::regex_match(r.path, keep)) continue;
-      kept_images.insert({r.timestamp, r.device_id});
+      if (!select.regex.empty() && !std::regex_match(r.path, keep)) continue;
       if (!image_paths.insert(r.path).second)
         throw InputError((source.root / records_file).string(), 0, "image_path",
                          "'" + r.path + "' already comes from an earlier source");
-      if (copy_records_data) {
-        LinkOrCopyFile(from, SafeJoin(dst / kp::layout::kRecordsData, r.path, records_file));
-        ++report.data_files;
-      }
       records.push_back(std::move(r));
+      record_files.push_back(from);
     }
   }
+  std::vector<size_t> order(records.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return std::tie(records[a].timestamp, records[a].device_id) <
+           std::tie(records[b].timestamp, records[b].device_id);
+  });
+  std::map<std::string, int64_t> seen_of_camera;  // images of each camera so far, in time order
+  std::vector<kp::DataRecord> kept_records;
+  for (size_t i : order) {
+    kp::DataRecord& r = records[i];
+    const bool first_of_n = seen_of_camera[r.device_id]++ % select.sample_every == 0;
+    if (select.sample_every > 1 && first_of_n == select.sample_rest) continue;
+    kept_images.insert({r.timestamp, r.device_id});
+    if (copy_records_data) {
+      LinkOrCopyFile(record_files[i], SafeJoin(dst / kp::layout::kRecordsData, r.path,
+                                               kp::layout::RecordsFile(kp::kSensorCamera)));
+      ++report.data_files;
+    }
+    kept_records.push_back(std::move(r));
+  }
+  records = std::move(kept_records);
   kp::WriteSensors(dst / kp::layout::kSensors, sensors);
   if (!rigs.empty()) kp::WriteRigs(dst / kp::layout::kRigs, rigs);
   if (filtered) {
@@ -104,9 +125,6 @@ MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const f
     trajectories = std::move(kept);
   }
   if (!trajectories.empty()) kp::WriteTrajectories(dst / kp::layout::kTrajectories, trajectories);
-  std::stable_sort(records.begin(), records.end(), [](const auto& a, const auto& b) {
-    return std::tie(a.timestamp, a.device_id) < std::tie(b.timestamp, b.device_id);
-  });
   kp::WriteRecords(dst / kp::layout::RecordsFile(kp::kSensorCamera), kp::RecordKind::kCamera,
                    records);
   report.sensors = static_cast<int64_t>(sensors.size());

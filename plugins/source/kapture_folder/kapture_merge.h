@@ -31,11 +31,21 @@ struct MergeReport {
 // and reconstructions are not carried. A sensor id (or rig entry, or
 // trajectory key) present in several sources must be identical in all, else
 // InputError naming the source file; so must image paths after prefixing.
-// With a non-empty `image_regex`, only the images whose (prefixed) path
-// matches it whole are kept, and trajectories.txt only holds their poses
-// (e.g. the mapping or the query sequences of one ground-truth kapture).
+// Which images a merge keeps; trajectories.txt then only holds their poses.
+struct ImageSelection {
+  // Non-empty: only the images whose (prefixed) path matches it whole (e.g. the
+  // mapping or the query sequences of one ground-truth kapture).
+  std::string regex;
+  // Of those, one image in every `sample_every` of each camera in time order
+  // (the 1st, the N+1-th, ...): a sparse map of one recording.
+  int sample_every = 1;
+  // Keep the other N-1 of every N instead: the images that sparse map leaves
+  // out, localized as queries. Together the two selections partition the images.
+  bool sample_rest = false;
+};
+
 MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const fs::path& dst,
-                                bool copy_records_data, const std::string& image_regex = "");
+                                bool copy_records_data, const ImageSelection& select = {});
 
 }  // namespace locforge::colmap_stages
 

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <set>
 
 #include "locforge/error.h"
 #include "locforge/kapture/kapture.h"
@@ -42,11 +43,11 @@ fs::path MakeKapture(const fs::path& root, const std::vector<std::string>& seque
 TEST(KaptureMerge, ImageFilterKeepsMatchingImagesAndOnlyTheirPoses) {
   const fs::path dir = locforge::testing::MakeTempDir("lf_merge");
   const fs::path gt = MakeKapture(dir / "gt", {"map_00", "map_01", "val_00", "test_00"}, 100);
-  const MergeReport map = MergeCameraKaptures({{gt, ""}}, dir / "map", true, "map_.*");
+  const MergeReport map = MergeCameraKaptures({{gt, ""}}, dir / "map", true, {"map_.*"});
   EXPECT_EQ(map.images, 2);
   EXPECT_EQ(map.poses, 2);
   EXPECT_EQ(map.data_files, 2);
-  const MergeReport query = MergeCameraKaptures({{gt, ""}}, dir / "query", true, "(val|test)_.*");
+  const MergeReport query = MergeCameraKaptures({{gt, ""}}, dir / "query", true, {"(val|test)_.*"});
   EXPECT_EQ(query.images, 2);
   kp::Kapture q(dir / "query");
   const auto records = q.ReadDataRecords(kp::kSensorCamera);
@@ -63,16 +64,49 @@ TEST(KaptureMerge, ImageFilterKeepsMatchingImagesAndOnlyTheirPoses) {
   MakeKapture(dir / "rec/validation", {"val_00"}, 500);
   MakeKapture(dir / "rec/test", {"test_00"}, 600);
   const MergeReport test_only = MergeCameraKaptures(
-      {{dir / "rec/validation", "validation"}, {dir / "rec/test", "test"}}, dir / "test_only", false, "test/.*");
+      {{dir / "rec/validation", "validation"}, {dir / "rec/test", "test"}}, dir / "test_only", false, {"test/.*"});
   EXPECT_EQ(test_only.images, 1);
   EXPECT_EQ(test_only.data_files, 0);
+  fs::remove_all(dir);
+}
+
+// A sparse map: 1 image in 4 of each camera, and the other 3 as its queries.
+TEST(KaptureMerge, SampleEveryPartitionsEachCamerasImages) {
+  const fs::path dir = locforge::testing::MakeTempDir("lf_merge");
+  std::vector<std::string> sequences;
+  for (int i = 0; i < 10; ++i) sequences.push_back("map_0" + std::to_string(i));
+  const fs::path gt = MakeKapture(dir / "gt", sequences, 100);  // images at t = 100..109
+  ImageSelection sparse;
+  sparse.sample_every = 4;
+  const MergeReport map = MergeCameraKaptures({{gt, ""}}, dir / "map", true, sparse);
+  EXPECT_EQ(map.images, 3);  // t = 100, 104, 108
+  EXPECT_EQ(map.poses, 3);
+  EXPECT_EQ(map.data_files, 3);
+  sparse.sample_rest = true;
+  const MergeReport rest = MergeCameraKaptures({{gt, ""}}, dir / "rest", true, sparse);
+  EXPECT_EQ(rest.images, 7);
+  EXPECT_EQ(rest.poses, 7);
+  kp::Kapture m(dir / "map"), q(dir / "rest");
+  std::set<int64_t> map_times, rest_times;
+  for (const auto& r : m.ReadDataRecords(kp::kSensorCamera)) map_times.insert(r.timestamp);
+  for (const auto& r : q.ReadDataRecords(kp::kSensorCamera)) rest_times.insert(r.timestamp);
+  EXPECT_EQ(map_times, (std::set<int64_t>{100, 104, 108}));
+  EXPECT_EQ(rest_times, (std::set<int64_t>{101, 102, 103, 105, 106, 107, 109}));
+  ASSERT_NE(q.trajectories().Find(105, "cam0"), nullptr);
+  EXPECT_EQ(q.trajectories().Find(104, "cam0"), nullptr);
+  EXPECT_FALSE(fs::exists(dir / "rest/sensors/records_data/map_04"));
+  EXPECT_TRUE(fs::exists(dir / "rest/sensors/records_data/map_05/cam0/105.jpg"));
+  // The sampling applies to the images the regex kept.
+  ImageSelection odd{"map_0[13579]/.*", 2, false};
+  EXPECT_EQ(MergeCameraKaptures({{gt, ""}}, dir / "odd", false, odd).images, 3);  // 101, 105, 109
+  EXPECT_THROW(MergeCameraKaptures({{gt, ""}}, dir / "bad", false, {"", 0, false}), ParamError);
   fs::remove_all(dir);
 }
 
 TEST(KaptureMerge, BadRegexIsAParamError) {
   const fs::path dir = locforge::testing::MakeTempDir("lf_merge");
   const fs::path gt = MakeKapture(dir / "gt", {"map_00"}, 100);
-  EXPECT_THROW(MergeCameraKaptures({{gt, ""}}, dir / "out", false, "(map_"), ParamError);
+  EXPECT_THROW(MergeCameraKaptures({{gt, ""}}, dir / "out", false, {"(map_"}), ParamError);
   fs::remove_all(dir);
 }
 
