@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include "absolute_pose.h"
+#include "correspondences.h"
 #include "query_results.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/kapture/rigs.h"
@@ -92,7 +93,7 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
              {"matches", "kapture.matches", "query-to-map matches"}},
             {{"trajectories", "kapture.trajectories",
               "estimated query poses (+ failures.txt, localization_stats.csv)"}}};
-    meta.version = "1.1.0";
+    meta.version = "1.2.0";
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -108,7 +109,7 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
     Load(ctx);
     const QueryItem& item = items_.at(name);
     const auto start = std::chrono::steady_clock::now();
-    std::vector<Correspondence> cs;
+    CorrespondenceSet correspondences;
     std::vector<RigCamera> cameras;
     for (const auto& image : item.images) {
       const kp::Sensor* sensor = query_->sensors().Find(image.device);
@@ -123,8 +124,9 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
       }
       const int camera_index = static_cast<int>(cameras.size());
       cameras.push_back(rc);
-      AddCorrespondences(image.image, camera, camera_index, &cs);
+      AddCorrespondences(image.image, camera, camera_index, &correspondences);
     }
+    const std::vector<Correspondence>& cs = correspondences.correspondences();
     RansacOptions ransac = options().ToRansac();
     ransac.seed ^= std::hash<std::string>{}(name);
     AbsolutePoseResult r = EstimateAbsolutePose(cs, cameras, ransac);
@@ -150,7 +152,7 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
 
  private:
   void AddCorrespondences(const std::string& image, const Camera& camera, int camera_index,
-                          std::vector<Correspondence>* cs) {
+                          CorrespondenceSet* cs) {
     kp::FeatureArray keypoints;
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -175,12 +177,9 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
                            "index", "keypoint index " + std::to_string(q) + " out of range");
         const Eigen::Vector2d pixel(keypoints.At(q, 0), keypoints.At(q, 1));
         for (const int64_t id : point->second) {
-          Correspondence c;
-          c.normalized = camera.Unproject(pixel).hnormalized();
           const kp::Point3d& p = points_[id];
-          c.world = Eigen::Vector3d(p.x, p.y, p.z);
-          c.camera = camera_index;
-          cs->push_back(c);
+          cs->Add(camera_index, q, id, camera.Unproject(pixel).hnormalized(),
+                  Eigen::Vector3d(p.x, p.y, p.z));
         }
       }
     }
