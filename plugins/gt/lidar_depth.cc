@@ -118,12 +118,6 @@ class LidarDepthStage : public PerItemStage<LidarDepthOptions> {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!images_) {
       images_.emplace(ctx.Input("images"));
-      // Kapture parses sensors, rigs and trajectories lazily and is not
-      // thread-safe: parse them here, under the lock, before ProcessItem reads
-      // them from several threads (a race read a garbage camera model id).
-      images_->sensors();
-      images_->rigs();
-      images_->trajectories();
       for (const auto& r : images_->ReadDataRecords(kp::kSensorCamera)) records_[r.path] = r;
     }
     return *images_;

@@ -189,10 +189,6 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
     std::lock_guard<std::mutex> lock(mutex_);
     if (loaded_) return;
     query_ = std::make_unique<kp::Kapture>(ctx.Input("query"));
-    // Kapture parses sensors/rigs lazily and is not thread-safe: parse them
-    // here, under the lock, before ProcessItem reads them from several threads.
-    query_->sensors();
-    query_->rigs();
     features_ = std::make_unique<kp::Kapture>(ctx.Input("query_features"));
     matches_ = std::make_unique<kp::Kapture>(ctx.Input("matches"));
     keypoints_type_ = FeatureTypeOf(*features_, kp::FeatureKind::kKeypoints,

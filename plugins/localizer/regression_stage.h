@@ -62,7 +62,6 @@ class RegressionStage : public PerItemStage<Options> {
     std::lock_guard<std::mutex> lock(mutex_);
     if (query_) return;
     auto query = std::make_unique<kapture::Kapture>(ctx.Input("query"));
-    query->sensors();  // parsed here, under the lock: Kapture is not thread-safe
     for (const auto& r : query->ReadDataRecords(kapture::kSensorCamera)) queries_[r.path] = r;
     query_ = std::move(query);
   }

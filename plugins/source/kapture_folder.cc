@@ -53,7 +53,8 @@ struct KaptureFolderOptions {
       if (sub.empty() || fs::path(sub).is_absolute() || sub.find("..") != std::string::npos)
         return *why = "subfolders: '" + sub + "' is not a relative folder under path", false;
     try {
-      std::regex(images);
+      const std::regex valid(images);  // (`std::regex(images);` would declare a variable)
+      (void)valid;
     } catch (const std::regex_error& e) {
       return *why = "images: '" + images + "' is not a regular expression: " + e.what(), false;
     }

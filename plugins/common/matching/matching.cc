@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 
 #include "locforge/error.h"
+#include "nearest_avx2.h"
 
 namespace locforge::matching {
 
@@ -21,19 +22,12 @@ DescriptorMatrix NormalisedDescriptors(const kapture::FeatureArray& d) {
   return m;
 }
 
-std::vector<kapture::Match> MatchDescriptors(const DescriptorMatrix& a, const DescriptorMatrix& b,
-                                             const NnOptions& o) {
-  std::vector<kapture::Match> out;
+namespace {
+
+// The portable scan: Eigen products of 1024-row blocks of a against b.
+void ScanNearestEigen(const DescriptorMatrix& a, const DescriptorMatrix& b, int* best, float* best_sim,
+                      float* second_sim, int* col_best, float* col_best_sim) {
   const int64_t n = a.rows(), m = b.rows();
-  if (n == 0 || m == 0) return out;
-  if (a.cols() != b.cols())
-    throw InputError("descriptor sizes differ: " + std::to_string(a.cols()) + " vs " +
-                     std::to_string(b.cols()));
-  constexpr float kNone = -std::numeric_limits<float>::infinity();
-  std::vector<int> best(n, -1);
-  std::vector<float> best_sim(n, kNone), second_sim(n, kNone);
-  std::vector<int> col_best(m, -1);
-  std::vector<float> col_best_sim(m, kNone);
   constexpr int64_t kBlock = 1024;
   Eigen::MatrixXf sim;
   for (int64_t start = 0; start < n; start += kBlock) {
@@ -57,6 +51,29 @@ std::vector<kapture::Match> MatchDescriptors(const DescriptorMatrix& a, const De
       }
     }
   }
+}
+
+}  // namespace
+
+std::vector<kapture::Match> MatchDescriptors(const DescriptorMatrix& a, const DescriptorMatrix& b,
+                                             const NnOptions& o) {
+  std::vector<kapture::Match> out;
+  const int64_t n = a.rows(), m = b.rows();
+  if (n == 0 || m == 0) return out;
+  if (a.cols() != b.cols())
+    throw InputError("descriptor sizes differ: " + std::to_string(a.cols()) + " vs " +
+                     std::to_string(b.cols()));
+  constexpr float kNone = -std::numeric_limits<float>::infinity();
+  std::vector<int> best(n, -1);
+  std::vector<float> best_sim(n, kNone), second_sim(n, kNone);
+  std::vector<int> col_best(m, -1);
+  std::vector<float> col_best_sim(m, kNone);
+  static const bool kAvx2 = avx2::Supported();
+  if (o.use_avx2 && kAvx2 && a.cols() % 8 == 0)
+    avx2::ScanNearest(a.data(), n, b.data(), m, a.cols(), best.data(), best_sim.data(), second_sim.data(),
+                      col_best.data(), col_best_sim.data());
+  else
+    ScanNearestEigen(a, b, best.data(), best_sim.data(), second_sim.data(), col_best.data(), col_best_sim.data());
   auto distance = [](float s) { return std::sqrt(std::max(0.0, 2.0 - 2.0 * s)); };
   for (int64_t i = 0; i < n; ++i) {
     const int j = best[i];

@@ -25,6 +25,7 @@ struct NnOptions {
   bool cross_check = true;   // keep i<->j only when each is the other's nearest
   double ratio = 1.0;        // Lowe's ratio d1/d2 must be below this (1: off)
   double max_distance = 2.0; // L2 distance of unit descriptors must be <= this (2: off)
+  bool use_avx2 = true;      // AVX2 + FMA scan where the processor has them (false: the portable Eigen scan)
 };
 
 // Nearest neighbours of the rows of `a` among the rows of `b`; score = cosine

@@ -10,11 +10,13 @@
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <sstream>
+#include <tuple>
 
 #include "locforge/kapture/kapture.h"
 #include "locforge/runtime/registry.h"
 #include "locforge/testkit.h"
 #include "matching.h"
+#include "nearest_avx2.h"
 #include "sift.h"
 #include "testing.h"
 
@@ -73,6 +75,42 @@ TEST(MutualNn, RecoversAKnownPermutation) {
   NnOptions plain;
   plain.cross_check = false;
   EXPECT_EQ(MatchDescriptors(a, b, plain).size(), 1700u);
+}
+
+// The AVX2 scan (default where the processor has it) and the portable Eigen
+// scan find the same neighbours: sizes not multiples of the 3x4 block or of
+// the 384-row chunk, descriptor sizes 8, 128 and 512. They sum in different
+// orders, so a pair differs only when two candidates are within float
+// rounding of each other.
+TEST(MutualNn, Avx2AndPortableScansAgree) {
+  if (!avx2::Supported()) GTEST_SKIP() << "this processor has no AVX2 + FMA: only the portable scan runs";
+  std::mt19937 rng(11);
+  std::normal_distribution<float> g;
+  for (const auto& [n, m, dims] : {std::tuple{1003, 517, 128}, std::tuple{7, 1201, 512}, std::tuple{400, 2, 8}}) {
+    SCOPED_TRACE(std::to_string(n) + " x " + std::to_string(m) + " x " + std::to_string(dims));
+    DescriptorMatrix a(n, dims), b(m, dims);
+    for (int i = 0; i < a.size(); ++i) a.data()[i] = std::abs(g(rng));
+    for (int i = 0; i < b.size(); ++i) b.data()[i] = std::abs(g(rng));
+    for (int i = 0; i < n; ++i) a.row(i).normalize();
+    for (int i = 0; i < m; ++i) b.row(i).normalize();
+    NnOptions fast, portable;
+    fast.cross_check = portable.cross_check = false;  // every row's nearest: compares the whole scan
+    fast.ratio = portable.ratio = 0.999;              // needs the second nearest too
+    portable.use_avx2 = false;
+    const auto x = MatchDescriptors(a, b, fast), y = MatchDescriptors(a, b, portable);
+    ASSERT_GT(y.size(), 0u);
+    ASSERT_EQ(x.size(), y.size());
+    for (size_t k = 0; k < x.size(); ++k) {
+      EXPECT_EQ(x[k].index1, y[k].index1);
+      EXPECT_EQ(x[k].index2, y[k].index2) << "row " << y[k].index1;
+      EXPECT_NEAR(x[k].score, y[k].score, 1e-5);
+    }
+    fast.cross_check = portable.cross_check = true;  // the columns' nearest too
+    fast.ratio = portable.ratio = 1.0;
+    const auto xc = MatchDescriptors(a, b, fast), yc = MatchDescriptors(a, b, portable);
+    ASSERT_EQ(xc.size(), yc.size());
+    for (size_t k = 0; k < xc.size(); ++k) EXPECT_EQ(xc[k].index2, yc[k].index2);
+  }
 }
 
 TEST(MutualNn, Uint8AndFloatDescriptorsMatchAlike) {

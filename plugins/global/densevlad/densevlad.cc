@@ -2,11 +2,11 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <opencv2/core.hpp>
-#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <sstream>
@@ -45,6 +45,80 @@ double Uniform01(std::mt19937_64& rng) { return (rng() >> 11) * 0x1.0p-53; }
 
 }  // namespace
 
+namespace {
+
+// The grid points of one bin size: ceil(2 bin) from the border, so a
+// descriptor's 4x4 bins (2 bin each side of its centre) lie in the image.
+std::vector<cv::Point> GridPoints(const cv::Size& size, double bin, int step) {
+  std::vector<cv::Point> out;
+  const int margin = static_cast<int>(std::ceil(2 * bin));
+  for (int y = margin; y < size.height - margin; y += step)
+    for (int x = margin; x < size.width - margin; x += step) out.emplace_back(x, y);
+  return out;
+}
+
+// Gradient magnitude split into 8 orientation maps, each pixel's magnitude
+// shared linearly between the two nearest of the 8 orientations.
+std::array<cv::Mat, 8> OrientationMaps(const cv::Mat& image) {
+  cv::Mat gx, gy, magnitude, angle;
+  cv::Sobel(image, gx, CV_32F, 1, 0, 1, 0.5, 0, cv::BORDER_REPLICATE);  // central differences
+  cv::Sobel(image, gy, CV_32F, 0, 1, 1, 0.5, 0, cv::BORDER_REPLICATE);
+  cv::cartToPolar(gx, gy, magnitude, angle);  // angle in [0, 2 pi)
+  std::array<cv::Mat, 8> maps;
+  for (auto& m : maps) m = cv::Mat::zeros(image.size(), CV_32F);
+  for (int y = 0; y < image.rows; ++y) {
+    const float* mag = magnitude.ptr<float>(y);
+    const float* ang = angle.ptr<float>(y);
+    for (int x = 0; x < image.cols; ++x) {
+      const float t = ang[x] * static_cast<float>(8 / (2 * M_PI));
+      const int lower = static_cast<int>(std::floor(t));
+      const float w = t - static_cast<float>(lower);
+      maps[((lower % 8) + 8) % 8].ptr<float>(y)[x] += mag[x] * (1 - w);
+      maps[(lower + 1) % 8].ptr<float>(y)[x] += mag[x] * w;
+    }
+  }
+  return maps;
+}
+
+// Value of a map at a real position (bilinear; 0 outside).
+float Sample(const cv::Mat& map, double x, double y) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
+  auto at = [&](int xx, int yy) {
+    return xx < 0 || yy < 0 || xx >= map.cols || yy >= map.rows ? 0.f : map.ptr<float>(yy)[xx];
+  };
+  return (1 - ay) * ((1 - ax) * at(x0, y0) + ax * at(x0 + 1, y0)) +
+         ay * ((1 - ax) * at(x0, y0 + 1) + ax * at(x0 + 1, y0 + 1));
+}
+
+// SIFT's normalisation (L2, clip at 0.2, L2) then RootSIFT (L1, square root).
+void NormaliseRootSift(float* d) {
+  auto l2 = [&] {
+    double n = 0;
+    for (int j = 0; j < 128; ++j) n += static_cast<double>(d[j]) * d[j];
+    const float inv = n > 0 ? static_cast<float>(1 / std::sqrt(n)) : 0.f;
+    for (int j = 0; j < 128; ++j) d[j] *= inv;
+  };
+  l2();
+  for (int j = 0; j < 128; ++j) d[j] = std::min(d[j], 0.2f);
+  l2();
+  double l1 = 0;
+  for (int j = 0; j < 128; ++j) l1 += d[j];
+  const double inv = l1 > 0 ? 1.0 / l1 : 0.0;
+  for (int j = 0; j < 128; ++j) d[j] = static_cast<float>(std::sqrt(d[j] * inv));
+}
+
+}  // namespace
+
+// Dense SIFT as VLFeat's vl_dsift in its fast (flat-window) mode, the extractor
+// of Torii et al.'s DenseVLAD (through vl_phow). Per bin size: the image is
+// smoothed with sigma = sqrt((bin / 6)^2 - 0.25) (vl_phow's magnif 6, minus the
+// image's own 0.5 blur), its gradient split into 8 orientation maps, each map
+// convolved once with a triangular kernel of half-width `bin` (the bilinear
+// weighting of a pixel into its neighbouring spatial bins), and each grid
+// point's 4x4x8 values read at the 16 bin centres, (j - 1.5) bin from it.
+// Cost per scale: O(pixels x 8 x bin), not O(points x window) as OpenCV's
+// per-keypoint SIFT::compute (which global/densevlad 1.0.0 used: 7x SIFT's time).
 RowMatrix DenseRootSift(const cv::Mat& gray_in, const DenseSiftOptions& o) {
   cv::Mat gray = gray_in;
   const int longer = std::max(gray_in.cols, gray_in.rows);
@@ -52,26 +126,39 @@ RowMatrix DenseRootSift(const cv::Mat& gray_in, const DenseSiftOptions& o) {
     const double s = static_cast<double>(o.max_image_size) / longer;
     cv::resize(gray_in, gray, cv::Size(), s, s, cv::INTER_AREA);
   }
-  std::vector<cv::KeyPoint> grid;
+  cv::Mat image;
+  gray.convertTo(image, CV_32F, 1.0 / 255);
+  std::vector<std::vector<cv::Point>> grids;
+  int64_t total = 0;
   for (double bin : o.bin_sizes) {
-    // OpenCV's SIFT bin width is 3 sigma = 1.5 x size; the 4x4 bins must fit.
-    const float size = static_cast<float>(bin * 2.0 / 3.0);
-    const int margin = static_cast<int>(std::ceil(2 * bin));
-    for (int y = margin; y < gray.rows - margin; y += o.grid_step)
-      for (int x = margin; x < gray.cols - margin; x += o.grid_step)
-        grid.emplace_back(static_cast<float>(x), static_cast<float>(y), size, 0.f);
+    grids.push_back(GridPoints(image.size(), bin, o.grid_step));
+    total += static_cast<int64_t>(grids.back().size());
   }
-  RowMatrix out(0, 128);
-  if (grid.empty()) return out;
-  cv::Mat descriptors;
-  cv::SIFT::create()->compute(gray, grid, descriptors);
-  out.resize(descriptors.rows, 128);
-  for (int i = 0; i < descriptors.rows; ++i) {
-    const float* d = descriptors.ptr<float>(i);
-    double l1 = 0;
-    for (int j = 0; j < 128; ++j) l1 += std::abs(d[j]);
-    const double inv = l1 > 0 ? 1.0 / l1 : 0.0;
-    for (int j = 0; j < 128; ++j) out(i, j) = static_cast<float>(std::sqrt(std::abs(d[j]) * inv));
+  RowMatrix out(total, 128);
+  int64_t row = 0;
+  for (size_t s = 0; s < o.bin_sizes.size(); ++s) {
+    if (grids[s].empty()) continue;
+    const double bin = o.bin_sizes[s];
+    const double sigma = std::sqrt(std::max(0.0, bin * bin / 36 - 0.25));
+    cv::Mat smooth = image;
+    if (sigma > 0.01) cv::GaussianBlur(image, smooth, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    const int half = static_cast<int>(std::ceil(bin)) - 1;  // taps with a non-zero weight
+    cv::Mat kernel(2 * half + 1, 1, CV_32F);
+    for (int d = -half; d <= half; ++d) kernel.at<float>(d + half) = static_cast<float>(1 - std::abs(d) / bin);
+    std::array<cv::Mat, 8> maps = OrientationMaps(smooth);
+    for (auto& m : maps) {
+      cv::Mat spread;
+      cv::sepFilter2D(m, spread, CV_32F, kernel, kernel, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+      m = spread;
+    }
+    for (const cv::Point& p : grids[s]) {
+      float* d = out.row(row++).data();
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j)
+          for (int k = 0; k < 8; ++k)
+            d[(i * 4 + j) * 8 + k] = Sample(maps[k], p.x + (j - 1.5) * bin, p.y + (i - 1.5) * bin);
+      NormaliseRootSift(d);
+    }
   }
   return out;
 }
@@ -163,11 +250,11 @@ Eigen::VectorXf DenseVladDescriptor(const cv::Mat& gray, const Vocabulary& v) {
 }
 
 // ------------------------------------------------------------ file format
-// "locforge-densevlad 1\n" + one text line of settings + raw little-endian
+// "locforge-densevlad 2\n" + one text line of settings + raw little-endian
 // float32 arrays: centres (K x 128), PCA mean (D) and projection (dims x D).
 
 namespace {
-constexpr const char* kMagic = "locforge-densevlad 1";
+constexpr const char* kMagic = "locforge-densevlad 2";  // 2: vl_dsift-style dense SIFT
 
 void Append(std::string* out, const float* data, size_t count) {
   out->append(reinterpret_cast<const char*>(data), count * sizeof(float));
@@ -193,6 +280,10 @@ std::string Vocabulary::Serialize() const {
 Vocabulary Vocabulary::Parse(const std::string& bytes, const std::string& file) {
   const size_t l1 = bytes.find('\n');
   const size_t l2 = l1 == std::string::npos ? l1 : bytes.find('\n', l1 + 1);
+  if (bytes.compare(0, 21, "locforge-densevlad 1\n") == 0)
+    throw InputError(file, 1, "", "a version-1 vocabulary (OpenCV's per-keypoint dense SIFT, global/densevlad 1.0.0): "
+                                  "its words do not fit global/densevlad 2.0.0's descriptors; train it again with "
+                                  "global/densevlad_vocabulary 2.0.0");
   if (l2 == std::string::npos || bytes.compare(0, l1, kMagic) != 0)
     throw InputError(file, 1, "", "not a locforge DenseVLAD vocabulary");
   std::istringstream head(bytes.substr(l1 + 1, l2 - l1 - 1));

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <cmath>
 #include <map>
+#include <opencv2/core.hpp>
 #include <random>
 #include <tuple>
 
@@ -233,6 +235,82 @@ TEST(DenseVlad, VladIsNormalisedAndVocabularyRoundTrips) {
   EXPECT_TRUE(back.centres.isApprox(v.centres));
   EXPECT_TRUE(back.pca_projection.isApprox(v.pca_projection));
   EXPECT_THROW(Vocabulary::Parse(v.Serialize().substr(0, 500), "v.bin"), InputError);
+}
+
+// Row of the grid point (x, y) in DenseRootSift's output for one bin size at
+// grid step 1: rows run over y then x, from ceil(2 bin) inside the border.
+int64_t GridRow(const cv::Mat& image, double bin, int x, int y) {
+  const int m = static_cast<int>(std::ceil(2 * bin));
+  return static_cast<int64_t>(y - m) * (image.cols - 2 * m) + (x - m);
+}
+
+// A linear ramp's gradient has one orientation everywhere: every spatial bin
+// holds the same value in that orientation (RootSIFT: 1/sqrt(16) = 0.25), or,
+// half-way between two of the 8 orientations, half in each (1/sqrt(32)).
+TEST(DenseVlad, DenseSiftOfARampIsItsOrientationInEveryBin) {
+  DenseSiftOptions o;
+  o.max_image_size = 0;
+  o.grid_step = 1;
+  o.bin_sizes = {6};
+  const double pi = std::acos(-1.0);
+  for (const auto& [angle_deg, first, second] : {std::tuple{0.0, 0, 0}, std::tuple{90.0, 2, 2},
+                                                  std::tuple{180.0, 4, 4}, std::tuple{22.5, 0, 1},
+                                                  std::tuple{292.5, 6, 7}}) {
+    SCOPED_TRACE("ramp at " + std::to_string(angle_deg) + " deg");
+    cv::Mat image(96, 96, CV_8U);
+    const double c = std::cos(angle_deg * pi / 180), sn = std::sin(angle_deg * pi / 180);
+    for (int y = 0; y < image.rows; ++y)  // image y points down, as the gradient's angle does
+      for (int x = 0; x < image.cols; ++x) image.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(128 + 2.0 * ((x - 48) * c + (y - 48) * sn));
+    const RowMatrix d = DenseRootSift(image, o);
+    const Eigen::VectorXf at = d.row(GridRow(image, 6, 48, 48)).transpose();
+    const float expected = first == second ? 0.25f : 1 / std::sqrt(32.f);
+    for (int b = 0; b < 16; ++b)
+      for (int k = 0; k < 8; ++k) {
+        const bool lit = k == first || k == second;
+        EXPECT_NEAR(at[b * 8 + k], lit ? expected : 0.f, 0.03) << "spatial bin " << b << " orientation " << k;
+      }
+  }
+}
+
+// Each of the 4x4 spatial bins sees only the pixels within one bin width of
+// its centre: a ramp that stops 2 bins left of the descriptor's centre (its
+// edge) lights the first column of bins only; the same ramp above, the first row.
+TEST(DenseVlad, DenseSiftBinsSeeOnlyTheirOwnPartOfTheImage) {
+  DenseSiftOptions o;
+  o.max_image_size = 0;
+  o.grid_step = 1;
+  o.bin_sizes = {8};
+  const int centre = 64;
+  for (bool columns : {true, false}) {
+    cv::Mat image(128, 128, CV_8U);
+    for (int y = 0; y < image.rows; ++y)
+      for (int x = 0; x < image.cols; ++x) {
+        const int u = columns ? x : y;  // the ramp runs along u up to centre - 16 (2 bins), then flat
+        image.at<uint8_t>(y, x) = static_cast<uint8_t>(std::min(u, centre - 16) * 2);
+      }
+    const RowMatrix d = DenseRootSift(image, o);
+    const Eigen::VectorXf at = d.row(GridRow(image, 8, centre, centre)).transpose();
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) {
+        float mass = 0;
+        for (int k = 0; k < 8; ++k) mass += at[(i * 4 + j) * 8 + k];
+        const bool lit = (columns ? j : i) == 0;
+        if (lit)
+          EXPECT_GT(mass, 0.4f) << "bin " << i << "," << j;
+        else
+          EXPECT_LT(mass, 0.05f) << "bin " << i << "," << j;
+      }
+  }
+}
+
+TEST(DenseVlad, VersionOneVocabularyIsRefusedWithTheReason) {
+  try {
+    Vocabulary::Parse("locforge-densevlad 1\nclusters 1 dim 128\n", "old.bin");
+    FAIL() << "a version-1 vocabulary was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("train it again"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("old.bin"), std::string::npos) << e.what();
+  }
 }
 
 TEST(DenseVlad, SimulatorQueriesRetrieveNearbyMapImages) {

@@ -5,24 +5,18 @@
 #include <random>
 
 #include "locforge/camera.h"
+#include "test_scene.h"
 
 namespace locforge::localization {
 namespace {
+
+using localization::testing::PointsInView;
 
 Pose RandomPose(std::mt19937& rng) {
   std::normal_distribution<double> g(0, 1);
   const Eigen::Vector3d axis = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
   return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(0.3 + std::abs(g(rng)), axis)),
               Eigen::Vector3d(g(rng), g(rng), g(rng)));
-}
-
-// Points in front of the camera, in the world frame.
-std::vector<Eigen::Vector3d> PointsInView(const Pose& camera_from_world, int n, std::mt19937& rng) {
-  std::uniform_real_distribution<double> xy(-1.5, 1.5), z(2, 8);
-  std::vector<Eigen::Vector3d> out;
-  const Pose world_from_camera = camera_from_world.Inverse();
-  for (int i = 0; i < n; ++i) out.push_back(world_from_camera * Eigen::Vector3d(xy(rng), xy(rng), z(rng)));
-  return out;
 }
 
 double RotationErrorDeg(const Pose& a, const Pose& b) { return RotationAngleDeg(a.q, b.q); }

@@ -6,17 +6,12 @@
 
 #include <random>
 
+#include "test_scene.h"
+
 namespace locforge::localization {
 namespace {
 
-// Points in front of `camera_from_world`, in the world frame.
-std::vector<Eigen::Vector3d> PointsInView(const Pose& camera_from_world, int n, std::mt19937& rng) {
-  std::uniform_real_distribution<double> xy(-1.5, 1.5), z(3, 8);
-  std::vector<Eigen::Vector3d> out;
-  const Pose world_from_camera = camera_from_world.Inverse();
-  for (int i = 0; i < n; ++i) out.push_back(world_from_camera * Eigen::Vector3d(xy(rng), xy(rng), z(rng)));
-  return out;
-}
+using localization::testing::PointsInView;
 
 TEST(CorrespondenceSet, EachKeypointAndPointOnce) {
   CorrespondenceSet set;
@@ -43,13 +38,13 @@ TEST(CorrespondenceSet, LookAlikeSeenFromManyMapImagesDoesNotOutvoteTheTruePlace
   CorrespondenceSet set;
   std::vector<Correspondence> per_map_image;
   int64_t id = 0;
-  for (const auto& p : PointsInView(truth, 120, rng)) {
+  for (const auto& p : PointsInView(truth, 120, rng, 3.0)) {
     const Eigen::Vector2d x = (truth * p).hnormalized() + Eigen::Vector2d(noise(rng), noise(rng));
     set.Add(0, id, id, x, p);
     per_map_image.push_back({x, p, 0});
     ++id;
   }
-  for (const auto& p : PointsInView(look_alike, 60, rng)) {
+  for (const auto& p : PointsInView(look_alike, 60, rng, 3.0)) {
     const Eigen::Vector2d x = (look_alike * p).hnormalized() + Eigen::Vector2d(noise(rng), noise(rng));
     for (int map_image = 0; map_image < 3; ++map_image) {
       set.Add(0, id, id, x, p);

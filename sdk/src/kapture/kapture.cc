@@ -2,6 +2,7 @@
 #include "locforge/kapture/kapture.h"
 
 #include <algorithm>
+#include <mutex>
 #include <set>
 
 #include "locforge/error.h"
@@ -24,7 +25,11 @@ std::string MatchesFile(const std::string& image1, const std::string& image2) {
 
 using namespace files;  // NOLINT: the library's own helpers
 
+// Filled lazily on first use; `mutex` serialises the fills (and lookups of
+// the feature maps), so threads may share one Kapture. A filled entry is
+// never modified again, so the references handed out stay valid unlocked.
 struct Kapture::Cache {
+  std::recursive_mutex mutex;  // recursive: observations() scans the features
   std::optional<Sensors> sensors;
   std::optional<Rigs> rigs;
   std::optional<Trajectories> trajectories;
@@ -44,6 +49,7 @@ Kapture::Kapture(Kapture&&) noexcept = default;
 Kapture& Kapture::operator=(Kapture&&) noexcept = default;
 
 const Sensors& Kapture::sensors() const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   if (!cache_->sensors) {
     const fs::path p = root_ / layout::kSensors;
     cache_->sensors = IsFile(p) ? ReadSensors(p, layout::kSensors) : Sensors();
@@ -52,6 +58,7 @@ const Sensors& Kapture::sensors() const {
 }
 
 const Rigs& Kapture::rigs() const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   if (!cache_->rigs) {
     const fs::path p = root_ / layout::kRigs;
     cache_->rigs = IsFile(p) ? ReadRigs(p, layout::kRigs) : Rigs();
@@ -60,6 +67,7 @@ const Rigs& Kapture::rigs() const {
 }
 
 const Trajectories& Kapture::trajectories() const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   if (!cache_->trajectories) {
     const fs::path p = root_ / layout::kTrajectories;
     cache_->trajectories = IsFile(p) ? ReadTrajectories(p, layout::kTrajectories) : Trajectories();
@@ -123,6 +131,7 @@ fs::path Kapture::ExistingRecordDataPath(const std::string& relative,
 }
 
 void Kapture::ScanFeatures() const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   if (cache_->features_scanned) return;
   for (FeatureKind kind : kAllKinds) {
     const std::string display = layout::FeatureRoot(kind);
@@ -146,6 +155,7 @@ void Kapture::ScanFeatures() const {
 }
 
 std::vector<FeatureSet> Kapture::FeatureSets(FeatureKind kind) const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   ScanFeatures();
   std::vector<FeatureSet> out;
   for (const auto* m : {&cache_->features, &cache_->attached})
@@ -155,6 +165,7 @@ std::vector<FeatureSet> Kapture::FeatureSets(FeatureKind kind) const {
 }
 
 const FeatureSet& Kapture::GetFeatureSet(FeatureKind kind, const std::string& type) const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   ScanFeatures();
   auto it = cache_->attached.find({kind, type});
   if (it != cache_->attached.end()) return it->second;
@@ -168,11 +179,13 @@ const FeatureSet& Kapture::GetFeatureSet(FeatureKind kind, const std::string& ty
 }
 
 bool Kapture::HasFeatureType(FeatureKind kind, const std::string& type) const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   ScanFeatures();
   return cache_->attached.count({kind, type}) || cache_->features.count({kind, type});
 }
 
 void Kapture::AttachFeatures(FeatureKind kind, const std::string& type, const fs::path& dir) {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   if (!IsFile(dir / InfoFileName(kind)))
     throw InputError(dir.string(), 0, "", "no " + InfoFileName(kind) + " in this folder");
   cache_->attached[{kind, type}] = MakeFeatureSet(kind, type, dir, dir.string(), false);
@@ -275,6 +288,7 @@ std::vector<Match> Kapture::ReadMatches(const std::string& keypoints_type,
 }
 
 const std::vector<Point3d>& Kapture::points3d() const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   if (!cache_->points3d) {
     const fs::path p = root_ / layout::kPoints3d;
     cache_->points3d = IsFile(p) ? ReadPoints3d(p, layout::kPoints3d) : std::vector<Point3d>();
@@ -283,6 +297,7 @@ const std::vector<Point3d>& Kapture::points3d() const {
 }
 
 const Observations& Kapture::observations() const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
   if (!cache_->observations) {
     ScanFeatures();
     const fs::path p = root_ / layout::kObservations;

@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <thread>
+
 #include "locforge/error.h"
 #include "locforge/kapture/rigs.h"
 #include "testing.h"
@@ -349,6 +352,48 @@ TEST(KaptureLegacy, Reads10LayoutAndCopyKeepsIt) {
 
 namespace locforge::kapture {
 namespace {
+
+// Per-item stages share one Kapture across their threads: the first accesses,
+// racing, must each see the one complete parse (before the lock, a race read a
+// garbage camera model id in a clean-clone run).
+TEST(KaptureThreads, FirstAccessesFromManyThreadsSeeOneCompleteParse) {
+  const fs::path root = locforge::testing::MakeTempDir("kapture_threads") / "k";
+  Sensors sensors;
+  Camera cam;
+  cam.model = CameraModelId::kPinhole;
+  cam.width = 640;
+  cam.height = 480;
+  cam.params = {500.0, 501.0, 320.0, 240.0};
+  constexpr int kCameras = 50, kPoses = 4000;
+  for (int c = 0; c < kCameras; ++c) sensors.Add(MakeCameraSensor("cam" + std::to_string(c), "", cam));
+  WriteSensors(root / layout::kSensors, sensors);
+  Trajectories traj;  // large enough that parsing takes a while: a wide window for a race
+  for (int t = 0; t < kPoses; ++t)
+    traj.Set(t, "cam" + std::to_string(t % kCameras), Pose(Eigen::Quaterniond(1, 0, 0, 0), Eigen::Vector3d(t, 0, 0)));
+  WriteTrajectories(root / layout::kTrajectories, traj);
+  constexpr int kThreads = 6;
+  for (int round = 0; round < 10; ++round) {
+    const Kapture shared(root);
+    std::atomic<int> ready{0};
+    std::vector<size_t> sensor_counts(kThreads), pose_counts(kThreads);
+    std::vector<int> models(kThreads);
+    std::vector<std::thread> threads;
+    for (int i = 0; i < kThreads; ++i)
+      threads.emplace_back([&, i] {
+        ++ready;
+        while (ready < kThreads) std::this_thread::yield();  // start together
+        pose_counts[i] = shared.trajectories().size();
+        sensor_counts[i] = shared.sensors().size();
+        models[i] = static_cast<int>(shared.sensors().Find("cam" + std::to_string(i))->camera->model);
+      });
+    for (auto& t : threads) t.join();
+    for (int i = 0; i < kThreads; ++i) {
+      EXPECT_EQ(pose_counts[i], static_cast<size_t>(kPoses)) << "round " << round << " thread " << i;
+      EXPECT_EQ(sensor_counts[i], static_cast<size_t>(kCameras)) << "round " << round << " thread " << i;
+      EXPECT_EQ(models[i], static_cast<int>(CameraModelId::kPinhole)) << "round " << round << " thread " << i;
+    }
+  }
+}
 
 TEST(KaptureWriting, BuildsA11DatasetThatReadsBack) {
   const fs::path root = locforge::testing::MakeTempDir("kapture_write") / "k";

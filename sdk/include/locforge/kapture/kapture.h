@@ -14,8 +14,9 @@
 //
 // Nothing is read at construction. Sensors, rigs and trajectories are parsed
 // on first access and cached; records are streamed from their file on each
-// call; feature files are read per image on demand. Not thread-safe (the
-// caches are filled lazily): give each thread its own Kapture.
+// call; feature files are read per image on demand. The const readers may be
+// called from several threads on one Kapture: the lazy caches are filled
+// under a lock. AttachFeatures is setup: call it before sharing the object.
 #ifndef LOCFORGE_KAPTURE_KAPTURE_H_
 #define LOCFORGE_KAPTURE_KAPTURE_H_
 
@@ -113,7 +114,8 @@ class Kapture {
   bool HasFeatureType(FeatureKind kind, const std::string& type) const;
   // Adds a feature folder living outside the kapture (kapture-localization
   // keeps e.g. local_features/r2d2_500/keypoints/ with keypoints.txt and
-  // <image>.kpt files); it then reads like a built-in type.
+  // <image>.kpt files); it then reads like a built-in type. Not to be called
+  // while other threads read the same type.
   void AttachFeatures(FeatureKind kind, const std::string& type, const fs::path& dir);
 
   // <dir>/<image><ext>, refusing escapes.
