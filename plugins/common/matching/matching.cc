@@ -35,20 +35,8 @@ void ScanNearestEigen(const DescriptorMatrix& a, const DescriptorMatrix& b, int*
     sim.noalias() = a.middleRows(start, rows) * b.transpose();
     for (int64_t r = 0; r < rows; ++r) {
       const int64_t i = start + r;
-      for (int64_t j = 0; j < m; ++j) {
-        const float s = sim(r, j);
-        if (s > best_sim[i]) {
-          second_sim[i] = best_sim[i];
-          best_sim[i] = s;
-          best[i] = static_cast<int>(j);
-        } else if (s > second_sim[i]) {
-          second_sim[i] = s;
-        }
-        if (s > col_best_sim[j]) {
-          col_best_sim[j] = s;
-          col_best[j] = static_cast<int>(i);
-        }
-      }
+      for (int64_t j = 0; j < m; ++j)
+        avx2::UpdateNearest(i, j, sim(r, j), best, best_sim, second_sim, col_best, col_best_sim);
     }
   }
 }

@@ -44,35 +44,14 @@ __attribute__((target("avx2,fma"))) inline void Dot3x4(const float* a, const flo
     for (int c = 0; c < 4; ++c) s[r][c] = Sum(acc[r][c]);
 }
 
-struct Scan {
-  int* best;
-  float* best_sim;
-  float* second_sim;
-  int* col_best;
-  float* col_best_sim;
-  // Rows of a arrive in ascending order per column and columns in ascending
-  // order per row, so strict comparisons keep the lowest index on ties.
-  void Update(int64_t i, int64_t j, float s) const {
-    if (s > best_sim[i]) {
-      second_sim[i] = best_sim[i];
-      best_sim[i] = s;
-      best[i] = static_cast<int>(j);
-    } else if (s > second_sim[i]) {
-      second_sim[i] = s;
-    }
-    if (s > col_best_sim[j]) {
-      col_best_sim[j] = s;
-      col_best[j] = static_cast<int>(i);
-    }
-  }
-};
-
 }  // namespace
 
 __attribute__((target("avx2,fma"))) void ScanNearest(const float* a, int64_t n, const float* b, int64_t m,
                                                      int64_t dims, int* best, float* best_sim, float* second_sim,
                                                      int* col_best, float* col_best_sim) {
-  const Scan scan{best, best_sim, second_sim, col_best, col_best_sim};
+  auto update = [&](int64_t i, int64_t j, float s) {
+    UpdateNearest(i, j, s, best, best_sim, second_sim, col_best, col_best_sim);
+  };
   for (int64_t j0 = 0; j0 < m; j0 += kChunk) {
     const int64_t j1 = j0 + kChunk < m ? j0 + kChunk : m;
     int64_t i = 0;
@@ -84,13 +63,13 @@ __attribute__((target("avx2,fma"))) void ScanNearest(const float* a, int64_t n, 
         // Row-major over the block: each row sees its columns ascending, and
         // each column its rows ascending.
         for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 4; ++c) scan.Update(i + r, j + c, s[r][c]);
+          for (int c = 0; c < 4; ++c) update(i + r, j + c, s[r][c]);
       }
       for (; j < j1; ++j)
-        for (int r = 0; r < 3; ++r) scan.Update(i + r, j, Dot(a + (i + r) * dims, b + j * dims, dims));
+        for (int r = 0; r < 3; ++r) update(i + r, j, Dot(a + (i + r) * dims, b + j * dims, dims));
     }
     for (; i < n; ++i)
-      for (int64_t j = j0; j < j1; ++j) scan.Update(i, j, Dot(a + i * dims, b + j * dims, dims));
+      for (int64_t j = j0; j < j1; ++j) update(i, j, Dot(a + i * dims, b + j * dims, dims));
   }
 }
 

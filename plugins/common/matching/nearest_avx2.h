@@ -1,14 +1,32 @@
 // The nearest-neighbour scan of MatchDescriptors with AVX2 + FMA, chosen at
 // run time (matching.cc) on processors that have them; the Eigen path serves
-// the others. Plain pointers only: nearest_avx2.cc is compiled with -mavx2
-// -mfma and must instantiate no template or inline function that another
-// translation unit could share (the linker might keep its AVX2 copy).
+// the others. nearest_avx2.cc is compiled for the baseline target; only its
+// functions marked target("avx2,fma") use AVX2, so nothing it shares with
+// other translation units (UpdateNearest below, std templates) holds AVX2 code.
 #ifndef LOCFORGE_PLUGINS_MATCHING_NEAREST_AVX2_H_
 #define LOCFORGE_PLUGINS_MATCHING_NEAREST_AVX2_H_
 
 #include <cstdint>
 
 namespace locforge::matching::avx2 {
+
+// One similarity s of row i (of a) and row j (of b) into both scans' running
+// results. Callers feed each row its columns, and each column its rows, in
+// ascending order, so the strict comparisons keep the lowest index on ties.
+inline void UpdateNearest(int64_t i, int64_t j, float s, int* best, float* best_sim, float* second_sim,
+                          int* col_best, float* col_best_sim) {
+  if (s > best_sim[i]) {
+    second_sim[i] = best_sim[i];
+    best_sim[i] = s;
+    best[i] = static_cast<int>(j);
+  } else if (s > second_sim[i]) {
+    second_sim[i] = s;
+  }
+  if (s > col_best_sim[j]) {
+    col_best_sim[j] = s;
+    col_best[j] = static_cast<int>(i);
+  }
+}
 
 // True when the processor runs AVX2 and FMA.
 bool Supported();
