@@ -39,7 +39,7 @@ class MutualNnStage : public PerItemStage<MutualNnOptions> {
             "Nearest-neighbour descriptor matching per pair (mutual check, ratio, distance)",
             {kFeaturesPort, kQueryFeaturesPort, {"pairs", "kapture.pairs", "image pairs to match"}},
             {kMatchesOut}};
-    meta.version = "1.1.0";  // 1.1.0: AVX2 scan (scores may differ from 1.0.0 in the last float bits)
+    meta.version = "1.2.0";  // 1.1.0: AVX2 scan; 1.2.0: GEMM-shaped AVX2 tiles (scores may differ in the last float bits)
     return meta;
   }
   using PerItemStage::PerItemStage;

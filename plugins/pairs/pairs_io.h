@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <iterator>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -21,14 +22,19 @@ struct ScoredPair {
   double score = 0;
 };
 
-inline void WritePairs(const fs::path& out_dir, const std::vector<ScoredPair>& pairs) {
-  AtomicFile file(out_dir / "pairs.txt", false);
-  auto& out = file.stream();
-  out << "# query_image, map_image, score\n";
+inline constexpr char kPairsHeader[] = "# query_image, map_image, score\n";
+
+// The pairs' lines of pairs.txt, without the header.
+inline void WritePairLines(std::ostream& out, const std::vector<ScoredPair>& pairs) {
   for (const auto& p : pairs) out << p.query << ", " << p.map << ", " << k::FormatDouble(p.score) << "\n";
-  file.Commit();
 }
 
+inline void WritePairs(const fs::path& out_dir, const std::vector<ScoredPair>& pairs) {
+  AtomicFile file(out_dir / "pairs.txt", false);
+  file.stream() << kPairsHeader;
+  WritePairLines(file.stream(), pairs);
+  file.Commit();
+}
 
 inline std::vector<std::string> Intersect(const std::vector<std::string>& sorted_a,
                                    const std::vector<std::string>& sorted_b) {

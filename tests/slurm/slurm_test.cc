@@ -425,12 +425,11 @@ TEST(Slurm, VirtualGalleryBenchmarkThreeShardsAndCancelledShard) {
   ASSERT_EQ(jobs.size(), 19u);
   // Per-item nodes as arrays of 3, whole-set ones as one job, each after its inputs' jobs.
   for (const char* node : {"map_features", "query_features", "map_global", "query_global",
-                           "map_matches", "map_verified", "query_matches", "query_verified",
-                           "pnp"})
+                           "map_pairs", "query_pairs", "map_matches", "map_verified",
+                           "query_matches", "query_verified", "pnp"})
     EXPECT_EQ(jobs[node].array, "0-2") << node;
-  for (const char* node : {"map", "query", "vocabulary", "map_pairs", "query_pairs",
-                           "triangulation", "colmap_registrator", "eval_pnp", "eval_colmap",
-                           "table"})
+  for (const char* node : {"map", "query", "vocabulary", "triangulation", "colmap_registrator",
+                           "eval_pnp", "eval_colmap", "table"})
     EXPECT_EQ(jobs[node].array, "-") << node;
   const std::set<std::string> inputs = {jobs["map_features"].id, jobs["map_pairs"].id};
   EXPECT_EQ(jobs["map_matches"].after, *inputs.begin() + "," + *inputs.rbegin());

@@ -35,8 +35,10 @@ void ScanNearestEigen(const DescriptorMatrix& a, const DescriptorMatrix& b, int*
     sim.noalias() = a.middleRows(start, rows) * b.transpose();
     for (int64_t r = 0; r < rows; ++r) {
       const int64_t i = start + r;
-      for (int64_t j = 0; j < m; ++j)
-        avx2::UpdateNearest(i, j, sim(r, j), best, best_sim, second_sim, col_best, col_best_sim);
+      for (int64_t j = 0; j < m; ++j) {
+        avx2::UpdateRow(i, j, sim(r, j), best, best_sim, second_sim);
+        avx2::UpdateColumn(i, j, sim(r, j), col_best, col_best_sim);
+      }
     }
   }
 }

@@ -2,7 +2,7 @@
 // run time (matching.cc) on processors that have them; the Eigen path serves
 // the others. nearest_avx2.cc is compiled for the baseline target; only its
 // functions marked target("avx2,fma") use AVX2, so nothing it shares with
-// other translation units (UpdateNearest below, std templates) holds AVX2 code.
+// other translation units (UpdateRow below, std templates) holds AVX2 code.
 #ifndef LOCFORGE_PLUGINS_MATCHING_NEAREST_AVX2_H_
 #define LOCFORGE_PLUGINS_MATCHING_NEAREST_AVX2_H_
 
@@ -10,11 +10,10 @@
 
 namespace locforge::matching::avx2 {
 
-// One similarity s of row i (of a) and row j (of b) into both scans' running
-// results. Callers feed each row its columns, and each column its rows, in
-// ascending order, so the strict comparisons keep the lowest index on ties.
-inline void UpdateNearest(int64_t i, int64_t j, float s, int* best, float* best_sim, float* second_sim,
-                          int* col_best, float* col_best_sim) {
+// One similarity s of row i (of a) and row j (of b) into row i's running
+// nearest and second nearest. Callers feed each row its columns in ascending
+// order, so the strict comparisons keep the lowest index on ties.
+inline void UpdateRow(int64_t i, int64_t j, float s, int* best, float* best_sim, float* second_sim) {
   if (s > best_sim[i]) {
     second_sim[i] = best_sim[i];
     best_sim[i] = s;
@@ -22,6 +21,10 @@ inline void UpdateNearest(int64_t i, int64_t j, float s, int* best, float* best_
   } else if (s > second_sim[i]) {
     second_sim[i] = s;
   }
+}
+
+// The same similarity into column j's running nearest row (rows fed ascending).
+inline void UpdateColumn(int64_t i, int64_t j, float s, int* col_best, float* col_best_sim) {
   if (s > col_best_sim[j]) {
     col_best_sim[j] = s;
     col_best[j] = static_cast<int>(i);

@@ -9,6 +9,7 @@
 #include <map>
 #include <opencv2/core.hpp>
 #include <random>
+#include <sstream>
 #include <tuple>
 
 #include "densevlad.h"
@@ -46,14 +47,19 @@ std::map<std::string, Eigen::Vector3d> Centres(const fs::path& dataset) {
   return out;
 }
 
+// Loads the global and pairs plugins into `registry` and imports the sample's
+// own AP-GeM-LM18 descriptors into `dir` (kapture.global_features).
+void ImportSampleApGem(runtime::Registry& registry, const fs::path& shared, const fs::path& dir) {
+  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE})
+    ASSERT_TRUE(registry.LoadFile(f));
+  RunStage(registry, "global/import", {{"path", (shared / "global_features/AP-GeM-LM18").string()}}, {}, dir);
+}
+
 TEST(PairsRetrieval, SampleApGemTop1IsTheCosineTop1AndNearby) {
   LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
   const fs::path tmp = locforge::testing::MakeTempDir("retrieval_apgem");
   runtime::Registry registry;
-  for (const char* f : {LOCFORGE_GLOBAL_PLUGIN_FILE, LOCFORGE_PAIRS_PLUGIN_FILE})
-    ASSERT_TRUE(registry.LoadFile(f));
-  RunStage(registry, "global/import", {{"path", (shared / "global_features/AP-GeM-LM18").string()}}, {},
-           tmp / "gfeat");
+  ASSERT_NO_FATAL_FAILURE(ImportSampleApGem(registry, shared, tmp / "gfeat"));
   const runtime::InputArtifact gf{"map_features", "kapture.global_features", tmp / "gfeat"};
   const runtime::InputArtifact qf{"query_features", "kapture.global_features", tmp / "gfeat"};
   const runtime::InputArtifact map{"map", "kapture.dataset", shared / "mapping"};
@@ -99,6 +105,78 @@ TEST(PairsRetrieval, SampleApGemTop1IsTheCosineTop1AndNearby) {
     EXPECT_TRUE(map_centres.count(m2m[i].map));
     if (i % 3) EXPECT_LE(m2m[i].score, m2m[i - 1].score);
   }
+  fs::remove_all(tmp);
+}
+
+// pairs/retrieval is per item (blocks of queries): one query per item over 3
+// shards, each shard its own stage instance as a separate process would be,
+// must write the same pairs.txt, byte for byte, as one unsharded run with the
+// same blocks; the shard that finds every item journaled is the one that
+// writes it. Other blocks (256 queries) rank the same pairs; their scores may
+// differ in the last float bits (Eigen sums a 1-row product in another order).
+TEST(PairsRetrieval, ShardedBlocksWriteTheSamePairsAsOneRun) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(shared, "data/kapture/virtual_gallery_tutorial");
+  const fs::path tmp = locforge::testing::MakeTempDir("retrieval_shards");
+  runtime::Registry registry;
+  ASSERT_NO_FATAL_FAILURE(ImportSampleApGem(registry, shared, tmp / "gfeat"));
+  const std::vector<runtime::InputArtifact> inputs = {
+      {"map_features", "kapture.global_features", tmp / "gfeat"}, {"map", "kapture.dataset", shared / "mapping"}};
+  const auto whole = RunStage(registry, "pairs/retrieval", {{"topk", "4"}, {"queries_per_item", "1"}}, inputs,
+                              tmp / "whole");
+  EXPECT_EQ(whole.items_total, 12u);
+  const auto one_block = RunStage(registry, "pairs/retrieval", {{"topk", "4"}}, inputs, tmp / "one_block");
+  EXPECT_EQ(one_block.items_total, 1u);  // 12 map images, 256 a block
+  const auto pairs = ReadPairs(tmp / "whole"), pairs_one_block = ReadPairs(tmp / "one_block");
+  ASSERT_EQ(pairs.size(), 12u * 4u);
+  ASSERT_EQ(pairs_one_block.size(), pairs.size());
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    EXPECT_EQ(pairs[i].query, pairs_one_block[i].query);
+    EXPECT_EQ(pairs[i].map, pairs_one_block[i].map);
+    EXPECT_NEAR(pairs[i].score, pairs_one_block[i].score, 1e-6);
+  }
+
+  const runtime::StageEntry* stage = registry.Find("pairs/retrieval");
+  ASSERT_NE(stage, nullptr);
+  const auto params = runtime::CheckStageParams(*stage, {{"topk", "4"}, {"queries_per_item", "1"}});
+  uint64_t items = 0;
+  int completed_by = -1;
+  // One shard as its own process would run it: a fresh stage instance.
+  auto run_shard = [&](int shard, int shards) {
+    runtime::StageInstance instance(*stage, params);
+    runtime::RunOptions run;
+    run.workspace = tmp;
+    run.output_dir = tmp / "sharded";
+    run.inputs = inputs;
+    run.threads = 2;
+    run.shard_index = shard;
+    run.shard_count = shards;
+    return instance.Run(run);
+  };
+  for (int shard : {2, 0, 1}) {
+    const auto result = run_shard(shard, 3);
+    items += result.items_total;
+    if (result.complete) completed_by = shard;
+    EXPECT_EQ(fs::exists(tmp / "sharded" / "pairs.txt"), result.complete) << "shard " << shard;
+  }
+  EXPECT_EQ(items, 12u);  // one item per map image, each in one shard
+  EXPECT_EQ(completed_by, 1);
+  EXPECT_EQ(ReadFile(tmp / "sharded" / "pairs.txt"), ReadFile(tmp / "whole" / "pairs.txt"));
+
+  // A lost block (an interrupted shard) is recomputed by a rerun that forgets its journal entry.
+  fs::remove(tmp / "sharded" / "blocks" / "queries-000005.txt");
+  fs::remove(tmp / "sharded" / "pairs.txt");
+  for (const auto& entry : fs::directory_iterator(tmp / "sharded"))
+    if (entry.path().filename().string().rfind(".items-done.", 0) == 0) {
+      std::string kept;
+      std::istringstream lines(ReadFile(entry.path()));
+      for (std::string line; std::getline(lines, line);)
+        if (line != "queries-000005") kept += line + "\n";
+      WriteFileAtomic(entry.path(), kept);
+    }
+  const auto result = run_shard(0, 1);
+  EXPECT_TRUE(result.complete);
+  EXPECT_EQ(result.items_processed, 1u);
+  EXPECT_EQ(ReadFile(tmp / "sharded" / "pairs.txt"), ReadFile(tmp / "whole" / "pairs.txt"));
   fs::remove_all(tmp);
 }
 
