@@ -62,14 +62,15 @@ class RetrievalStage : public PerItemStage<RetrievalOptions> {
     ctx.Info(std::to_string(plan.queries.size()) + " queries against " + std::to_string(plan.map_images.size()) +
              " map images (" + (plan.map_to_map ? "map-to-map" : "query-to-map") + ")");
     std::vector<std::string> items;
-    for (size_t b = 0; b * BlockSize() < plan.queries.size(); ++b) items.push_back(ItemName(b));
+    for (size_t b = 0; b < BlockCount(plan); ++b) items.push_back(ItemName(b));
     return items;
   }
 
   void ProcessItem(RunContext& ctx, const std::string& item) override {
     const Plan& plan = Load(ctx);
-    const size_t start = BlockIndex(item) * BlockSize();
-    if (start >= plan.queries.size()) throw Error("pairs/retrieval: item '" + item + "' is past the queries");
+    const size_t block_index = BlockIndex(item);
+    if (block_index >= BlockCount(plan)) throw Error("pairs/retrieval: item '" + item + "' is past the queries");
+    const size_t start = block_index * BlockSize();
     const std::vector<std::string> block(plan.queries.begin() + start,
                                          plan.queries.begin() + std::min(plan.queries.size(), start + BlockSize()));
     const Eigen::MatrixXf scores = plan.query_gf.Read(block) * MapDescriptors().transpose();
@@ -91,12 +92,13 @@ class RetrievalStage : public PerItemStage<RetrievalOptions> {
     const Plan& plan = Load(ctx);
     AtomicFile file(ctx.output_dir() / "pairs.txt", false);
     file.stream() << kPairsHeader;
-    for (size_t b = 0; b * BlockSize() < plan.queries.size(); ++b) file.stream() << ReadFile(BlockFile(ctx, ItemName(b)));
+    for (size_t b = 0; b < BlockCount(plan); ++b) file.stream() << ReadFile(BlockFile(ctx, ItemName(b)));
     file.Commit();
   }
 
  private:
   size_t BlockSize() const { return static_cast<size_t>(options().queries_per_item); }
+  size_t BlockCount(const Plan& plan) const { return (plan.queries.size() + BlockSize() - 1) / BlockSize(); }
   static std::string ItemName(size_t block) {
     char name[32];
     std::snprintf(name, sizeof(name), "queries-%06zu", block);
