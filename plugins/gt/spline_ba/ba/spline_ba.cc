@@ -9,7 +9,10 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <memory>
+#include <memory_resource>
+#include <optional>
 #include <sstream>
 
 #include "cost_functions.h"
@@ -152,18 +155,54 @@ Eigen::MatrixXd IntrinsicsBasis(CameraModelId model, const std::vector<double>& 
 }
 
 // The Ceres parameter storage of a problem.
+// The parameter blocks. Solved from one buffer (Pack): Ceres keeps each
+// elimination group as a set ordered by address, which becomes the reduced
+// system's column order, so blocks scattered over the heap made the rounding,
+// hence the solution's last bits, depend on the heap layout (two runs of the
+// `large` ground truth differed by 0.2 mm; test SameBitsWhateverTheHeapLayout).
 struct Parameters {
-  std::vector<std::array<double, 4>> image_q;  // q_world_camera, x y z w
-  std::vector<std::array<double, 3>> image_t;  // t_world_camera
-  std::vector<std::array<double, 3>> points;
-  std::vector<std::vector<double>> intrinsics;
-  std::vector<std::array<double, 4>> q_body_camera;
-  std::vector<double> time_offsets;  // per sensor, seconds
-  std::vector<SE3Spline> splines;  // per trajectory (empty control: none)
-  std::vector<std::vector<std::array<double, 7>>> controls;
-  std::vector<std::array<double, 7>> alignments;  // per trajectory, world-from-LiDAR-world
-  std::vector<double> log_scales;                 // per trajectory, of its LiDAR samples
+  explicit Parameters(std::pmr::memory_resource* memory = std::pmr::get_default_resource())
+      : image_q(memory), image_t(memory), points(memory), intrinsics(memory), q_body_camera(memory),
+        time_offsets(memory), controls(memory), alignments(memory), log_scales(memory) {}
+  std::pmr::vector<std::array<double, 4>> image_q;  // q_world_camera, x y z w
+  std::pmr::vector<std::array<double, 3>> image_t;  // t_world_camera
+  std::pmr::vector<std::array<double, 3>> points;
+  std::pmr::vector<std::pmr::vector<double>> intrinsics;
+  std::pmr::vector<std::array<double, 4>> q_body_camera;
+  std::pmr::vector<double> time_offsets;  // per sensor, seconds
+  std::vector<SE3Spline> splines;         // per trajectory (empty control: none); not parameters
+  std::pmr::vector<std::pmr::vector<std::array<double, 7>>> controls;
+  std::pmr::vector<std::array<double, 7>> alignments;  // per trajectory, world-from-LiDAR-world
+  std::pmr::vector<double> log_scales;                 // per trajectory, of its LiDAR samples
 };
+
+// Bytes that Pack and the later per-trajectory blocks (alignments, log
+// scales) take from the buffer, with room for each allocation's alignment.
+size_t PackedBytes(const Parameters& x) {
+  size_t doubles = 4 * x.image_q.size() + 3 * x.image_t.size() + 3 * x.points.size() + 4 * x.q_body_camera.size() +
+                   x.time_offsets.size() + (7 + 1) * x.controls.size();
+  for (const auto& k : x.intrinsics) doubles += k.size();
+  for (const auto& c : x.controls) doubles += 7 * c.size();
+  const size_t vectors = x.intrinsics.size() + x.controls.size();
+  const size_t allocations = 16 + vectors;
+  return doubles * sizeof(double) + vectors * sizeof(std::pmr::vector<double>) +
+         allocations * alignof(std::max_align_t);
+}
+
+// Copies every block into `to`, whose memory resource hands out addresses in
+// allocation order: one allocation per container, in this fixed order.
+void Pack(const Parameters& from, Parameters* to) {
+  to->image_q.assign(from.image_q.begin(), from.image_q.end());
+  to->image_t.assign(from.image_t.begin(), from.image_t.end());
+  to->points.assign(from.points.begin(), from.points.end());
+  to->intrinsics.reserve(from.intrinsics.size());
+  for (const auto& k : from.intrinsics) to->intrinsics.emplace_back(k.begin(), k.end());
+  to->q_body_camera.assign(from.q_body_camera.begin(), from.q_body_camera.end());
+  to->time_offsets.assign(from.time_offsets.begin(), from.time_offsets.end());
+  to->splines = from.splines;
+  to->controls.reserve(from.controls.size());
+  for (const auto& c : from.controls) to->controls.emplace_back(c.begin(), c.end());
+}
 
 void CopyIn(const BAProblem& p, Parameters* x) {
   for (const auto& im : p.images) {
@@ -173,7 +212,7 @@ void CopyIn(const BAProblem& p, Parameters* x) {
   }
   for (const auto& pt : p.points) x->points.push_back({pt.xyz.x(), pt.xyz.y(), pt.xyz.z()});
   for (const auto& s : p.sensors) {
-    x->intrinsics.push_back(s.camera.params);
+    x->intrinsics.emplace_back(s.camera.params.begin(), s.camera.params.end());
     const Eigen::Quaterniond& q = s.T_body_camera.q;
     x->q_body_camera.push_back({q.x(), q.y(), q.z(), q.w()});
     x->time_offsets.push_back(s.time_offset_s);
@@ -216,7 +255,7 @@ void CopyOut(const Parameters& x, bool splines, BAProblem* p, SplineBAResult* re
   for (size_t k = 0; k < p->points.size(); ++k)
     p->points[k].xyz = Eigen::Vector3d(x.points[k][0], x.points[k][1], x.points[k][2]);
   for (size_t s = 0; s < p->sensors.size(); ++s) {
-    p->sensors[s].camera.params = x.intrinsics[s];
+    p->sensors[s].camera.params.assign(x.intrinsics[s].begin(), x.intrinsics[s].end());
     const auto& q = x.q_body_camera[s];
     p->sensors[s].T_body_camera.q = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized();
     p->sensors[s].time_offset_s = x.time_offsets[s];
@@ -280,10 +319,22 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
   result.initial_mean_reproj_px = MeanReprojectionError(*problem);
   result.final_mean_reproj_px = result.initial_mean_reproj_px;
 
-  Parameters x;
-  CopyIn(*problem, &x);
   const bool splines = options.use_spline_prior;
-  if (splines) FitSplines(*problem, options.knot_spacing_s, &x);
+  std::vector<std::byte> buffer;
+  std::optional<std::pmr::monotonic_buffer_resource> arena;
+  std::optional<Parameters> packed;
+  {
+    Parameters loose;
+    CopyIn(*problem, &loose);
+    if (splines) FitSplines(*problem, options.knot_spacing_s, &loose);
+    // Twice the bound: the arena never falls back to the heap (which would
+    // still be correct, only no longer deterministic).
+    buffer.resize(2 * PackedBytes(loose));
+    arena.emplace(buffer.data(), buffer.size());
+    packed.emplace(&*arena);
+    Pack(loose, &*packed);
+  }
+  Parameters& x = *packed;
 
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -447,7 +498,7 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
       if (!(options.calibrate_intrinsics && sensor.calibrate_intrinsics)) {
         ceres_problem.SetParameterBlockConstant(k);
       } else {
-        const Eigen::MatrixXd basis = IntrinsicsBasis(sensor.camera.model, x.intrinsics[s],
+        const Eigen::MatrixXd basis = IntrinsicsBasis(sensor.camera.model, sensor.camera.params,
                                                       options.fix_aspect_ratio, options.refine_principal_point);
         if (basis.size() > 0) {
           restricted_intrinsics.push_back(std::make_unique<LinearSubspaceManifold>(basis));
