@@ -154,7 +154,6 @@ Eigen::MatrixXd IntrinsicsBasis(CameraModelId model, const std::vector<double>& 
   return basis;
 }
 
-// The Ceres parameter storage of a problem.
 // The parameter blocks. Solved from one buffer (Pack): Ceres keeps each
 // elimination group as a set ordered by address, which becomes the reduced
 // system's column order, so blocks scattered over the heap made the rounding,
