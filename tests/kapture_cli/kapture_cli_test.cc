@@ -134,4 +134,59 @@ TEST(KaptureCli, Copy) {
   fs::remove_all(tmp);
 }
 
+// The kapture toolbox's own samples (../shared/data/kapture/toolbox_samples):
+// each reads; all but t265, which ships no images, are clean under --strict.
+TEST(KaptureCli, InfoToolboxSamples) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(samples, "data/kapture/toolbox_samples");
+  for (const char* name : {"berlin", "berlin_tar", "cour_carree_markers", "maupertuis_openmvg",
+                           "t265", "utbm"}) {
+    SCOPED_TRACE(name);
+    const std::string dir = Quote((samples / name).string());
+    const Result info = RunKapture("info " + dir);
+    EXPECT_EQ(info.code, 0) << info.output;
+    const Result strict = RunKapture("info --strict " + dir);
+    if (std::string(name) == "t265") {
+      EXPECT_EQ(strict.code, 1) << strict.output;
+      EXPECT_TRUE(Has(strict, "records camera: 6 from 2 devices")) << strict.output;
+      EXPECT_TRUE(Has(strict, "6 files missing")) << strict.output;
+    } else {
+      EXPECT_EQ(strict.code, 0) << strict.output;
+      EXPECT_TRUE(Has(strict, "problems: none")) << strict.output;
+    }
+  }
+  // The tar-packed berlin counts the same features as the loose one.
+  const Result loose = RunKapture("info " + Quote((samples / "berlin").string()));
+  const Result packed = RunKapture("info " + Quote((samples / "berlin_tar").string()));
+  EXPECT_EQ(loose.output.substr(loose.output.find('\n')),
+            packed.output.substr(packed.output.find('\n')));
+  EXPECT_TRUE(Has(packed, "keypoints HessianAffine: HessianAffine, float32 x 4, 3 files"))
+      << packed.output;
+  EXPECT_TRUE(Has(packed, "matches HessianAffine: 3 image pairs")) << packed.output;
+  const Result openmvg = RunKapture("info " + Quote((samples / "maupertuis_openmvg").string()));
+  EXPECT_TRUE(Has(openmvg, "reconstruction: ")) << openmvg.output;
+  EXPECT_FALSE(Has(openmvg, "reconstruction: 0 points3d")) << openmvg.output;
+}
+
+TEST(KaptureCli, CopyKeepsTarPackedFeaturesAndRefusesADamagedArchive) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(src, "data/kapture/toolbox_samples/berlin_tar");
+  const fs::path tmp = locforge::testing::MakeTempDir("kapture_cli_tar");
+  const fs::path dst = tmp / "out";
+  const Result r = RunKapture("copy " + Quote(src.string()) + " " + Quote(dst.string()));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string kpt = "reconstruction/keypoints/HessianAffine/keypoints.tar";
+  for (const std::string rel : {kpt, std::string("reconstruction/descriptors/HOG/descriptors.tar"),
+                                std::string("reconstruction/matches/HessianAffine/matches.tar")})
+    EXPECT_TRUE(locforge::ReadFile(src / rel) == locforge::ReadFile(dst / rel)) << rel;
+  // Another mtime digit in the first entry's header: its checksum no longer holds.
+  std::string bytes = locforge::ReadFile(dst / kpt);
+  bytes[140] = bytes[140] == '0' ? '1' : '0';
+  fs::permissions(dst / kpt, fs::perms::owner_write, fs::perm_options::add);
+  locforge::WriteFileAtomic(dst / kpt, bytes);
+  const Result bad = RunKapture("info " + Quote(dst.string()));
+  EXPECT_EQ(bad.code, 2) << bad.output;
+  EXPECT_TRUE(Has(bad, kpt + ": entry '01.jpg.kpt' (header at byte 0)")) << bad.output;
+  EXPECT_TRUE(Has(bad, "bad header checksum")) << bad.output;
+  fs::remove_all(tmp);
+}
+
 }  // namespace

@@ -62,7 +62,9 @@ void CopyVerbatim(const fs::path& from, const fs::path& to) {
   AtomicFile out(to, true);
   std::ifstream in(from, std::ios::binary);
   if (!in) throw InputError(from.string(), 0, "", "cannot open file");
-  out.stream() << in.rdbuf();
+  // `<< rdbuf()` of an empty file inserts nothing and fails the stream.
+  std::error_code ec;
+  if (fs::file_size(from, ec) > 0 || ec) out.stream() << in.rdbuf();
   if (in.bad()) throw InputError(from.string(), 0, "", "read error");
   out.Commit();
 }
@@ -70,6 +72,21 @@ void CopyVerbatim(const fs::path& from, const fs::path& to) {
 void RewriteFeatureFile(const fs::path& from, const fs::path& to, DType dtype, int64_t dsize,
                         const std::string& display) {
   WriteFeatureFile(to, ReadFeatureFile(from, dtype, dsize, display));
+}
+
+// Every entry of an archive with `ext` holds whole rows of dtype x dsize;
+// then the archive is copied byte for byte (kept packed).
+void CopyArchive(const fs::path& from, const fs::path& to, const std::string& ext, DType dtype,
+                 int64_t dsize, const std::string& display) {
+  const TarArchive archive(from, display);
+  const uint64_t row_bytes = static_cast<uint64_t>(dsize) * DTypeSize(dtype);
+  for (const auto& [name, entry] : archive.entries())
+    if (EndsWith(name, ext) && entry.size % row_bytes != 0)
+      throw InputError(EntryName(archive, name), 0, "",
+                       "size " + std::to_string(entry.size) + " bytes is not a multiple of " +
+                           std::to_string(row_bytes) + " (dsize " + std::to_string(dsize) +
+                           " x sizeof(" + DTypeName(dtype) + "))");
+  CopyVerbatim(from, to);
 }
 
 template <class Record>
@@ -114,6 +131,16 @@ int64_t CopyRecordsFile(const fs::path& from, const fs::path& to, const std::str
 }
 
 constexpr size_t kListCap = 100;
+
+// reconstruction/matches/<type>/matches.tar (or matches/matches.tar for
+// the 1.0 layout's single type).
+bool IsMatchesArchive(const std::string& rel, const std::vector<std::string>& match_types) {
+  const std::string base = std::string(layout::kMatches) + "/";
+  if (rel == base + kMatchesTarName) return true;
+  for (const std::string& type : match_types)
+    if (rel == base + type + "/" + kMatchesTarName) return true;
+  return false;
+}
 
 }  // namespace
 
@@ -190,9 +217,16 @@ CopyReport CopyKapture(const fs::path& src, const fs::path& dst, const CopyOptio
       } else if (owner && EndsWith(rel, ext)) {
         RewriteFeatureFile(file, out, owner->info.dtype, owner->info.dsize, rel);
         ++report.binary_files;
+      } else if (owner && parent == owner->dir && owner->archive &&
+                 file.filename() == layout::FeatureTarName(owner->kind)) {
+        CopyArchive(file, out, ext, owner->info.dtype, owner->info.dsize, rel);
+        ++report.binary_files;
       } else if (rel.rfind(std::string(layout::kMatches) + "/", 0) == 0 &&
                  EndsWith(rel, ".matches")) {
         RewriteFeatureFile(file, out, DType::kFloat64, 3, rel);
+        ++report.binary_files;
+      } else if (IsMatchesArchive(rel, match_types)) {
+        CopyArchive(file, out, ".matches", DType::kFloat64, 3, rel);
         ++report.binary_files;
       } else {
         CopyVerbatim(file, out);

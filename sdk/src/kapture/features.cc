@@ -139,6 +139,33 @@ double FeatureArray::At(int64_t row, int64_t col) const {
   return 0;
 }
 
+namespace {
+
+// The size check shared by files and archive entries.
+void CheckFeatureSize(uintmax_t size, DType dtype, int64_t dsize, const std::string& name) {
+  if (dsize <= 0) throw InputError(name, 0, "dsize", "must be positive, got " + std::to_string(dsize));
+  const uintmax_t row_bytes = static_cast<uintmax_t>(dsize) * DTypeSize(dtype);
+  if (size % row_bytes != 0)
+    throw InputError(name, 0, "",
+                     "size " + std::to_string(size) + " bytes is not a multiple of dsize " +
+                         std::to_string(dsize) + " x sizeof(" + DTypeName(dtype) + ") = " +
+                         std::to_string(row_bytes) +
+                         " (truncated file, or wrong dtype/dsize in the type's .txt)");
+}
+
+}  // namespace
+
+FeatureArray FeatureArrayFromBytes(std::vector<uint8_t> bytes, DType dtype, int64_t dsize,
+                                   const std::string& display_name) {
+  CheckFeatureSize(bytes.size(), dtype, dsize, display_name);
+  FeatureArray a;
+  a.dtype = dtype;
+  a.dsize = dsize;
+  a.rows = static_cast<int64_t>(bytes.size() / (static_cast<size_t>(dsize) * DTypeSize(dtype)));
+  a.bytes = std::move(bytes);
+  return a;
+}
+
 FeatureArray ReadFeatureFile(const fs::path& path, DType dtype, int64_t dsize,
                              const std::string& display_name) {
   const std::string name = display_name.empty() ? path.string() : display_name;
@@ -147,24 +174,14 @@ FeatureArray ReadFeatureFile(const fs::path& path, DType dtype, int64_t dsize,
   if (!fs::is_regular_file(path, ec)) throw InputError(name, 0, "", "missing feature file");
   const uintmax_t size = fs::file_size(path, ec);
   if (ec) throw InputError(name, 0, "", "cannot read size: " + ec.message());
-  const uintmax_t row_bytes = static_cast<uintmax_t>(dsize) * DTypeSize(dtype);
-  if (size % row_bytes != 0)
-    throw InputError(name, 0, "",
-                     "size " + std::to_string(size) + " bytes is not a multiple of dsize " +
-                         std::to_string(dsize) + " x sizeof(" + DTypeName(dtype) + ") = " +
-                         std::to_string(row_bytes) +
-                         " (truncated file, or wrong dtype/dsize in the type's .txt)");
-  FeatureArray a;
-  a.dtype = dtype;
-  a.dsize = dsize;
-  a.rows = static_cast<int64_t>(size / row_bytes);
-  a.bytes.resize(static_cast<size_t>(size));
+  CheckFeatureSize(size, dtype, dsize, name);
+  std::vector<uint8_t> bytes(static_cast<size_t>(size));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(name, 0, "", "cannot open file");
-  if (size > 0) in.read(reinterpret_cast<char*>(a.bytes.data()), static_cast<std::streamsize>(size));
+  if (size > 0) in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size));
   if (static_cast<uintmax_t>(in.gcount()) != size)
     throw InputError(name, 0, "", "short read: the file changed while reading");
-  return a;
+  return FeatureArrayFromBytes(std::move(bytes), dtype, dsize, name);
 }
 
 void WriteFeatureFile(const fs::path& path, const FeatureArray& array) {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -57,7 +58,25 @@ inline FeatureSet MakeFeatureSet(FeatureKind kind, const std::string& type, cons
   set.legacy_layout = legacy;
   set.info = ReadFeatureInfo(dir / InfoFileName(kind), kind, display_dir + "/" + InfoFileName(kind));
   set.type = type.empty() ? set.info.name : type;
+  const std::string tar = layout::FeatureTarName(kind);
+  if (IsFile(dir / tar))
+    set.archive = std::make_shared<const TarArchive>(dir / tar, display_dir + "/" + tar);
   return set;
+}
+
+// The archive entry of one image of a tar-packed set, or null.
+inline const TarEntry* ArchiveEntry(const FeatureSet& set, const std::string& image) {
+  return set.archive ? set.archive->Find(image + FeatureKindExtension(set.kind)) : nullptr;
+}
+
+// True when the set has a file for `image`, loose or in its archive.
+inline bool SetHasImage(const FeatureSet& set, const std::string& image) {
+  return IsFile(set.dir / (image + FeatureKindExtension(set.kind))) || ArchiveEntry(set, image);
+}
+
+// What errors call an archive entry: "<archive>: entry '<name>'".
+inline std::string EntryName(const TarArchive& archive, const std::string& entry) {
+  return archive.name() + ": entry '" + entry + "'";
 }
 
 // Record types whose records point at files under records_data.

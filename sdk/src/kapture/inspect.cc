@@ -115,7 +115,7 @@ KaptureSummary InspectKapture(const fs::path& root) {
         if (kind == RecordKind::kCamera) {
           for (size_t i = 0; i < image_features.size(); ++i) {
             const FeatureSet& set = image_features[i];
-            if (!IsFile(set.dir / (r.path + FeatureKindExtension(set.kind)))) {
+            if (!SetHasImage(set, r.path)) {
               ++s.features[i].camera_records_without_file;
               problems.Add("missing feature files",
                            std::string(FeatureKindFolder(set.kind)) + "/" + set.type + ": no " +

@@ -1,5 +1,6 @@
 #include "locforge/kapture/io.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -15,6 +16,7 @@ const char* kSensorsColumns = "sensor_id, name, sensor_type, [sensor_params]+";
 const char* kRigsColumns = "rig_id, sensor_id, qw, qx, qy, qz, tx, ty, tz";
 const char* kTrajectoriesColumns = "timestamp, device_id, qw, qx, qy, qz, tx, ty, tz";
 const char* kPoints3dColumns = "X, Y, Z, R, G, B";
+const char* kPoints3dXyzColumns = "X, Y, Z";
 const char* kObservationsColumns = "point3d_id, keypoints_type, [image_path, feature_id]*";
 const char* kPoseFieldNames[7] = {"qw", "qx", "qy", "qz", "tx", "ty", "tz"};
 
@@ -33,6 +35,24 @@ void WriteText(const fs::path& path, const std::string& columns, Fn&& body) {
 }
 
 const std::string& Field(const CsvRow& row, size_t i) { return row.fields[i]; }
+
+// The toolbox's table_to_file padding (csv.py PADDINGS): a field
+// right-aligned to at least `width` characters.
+std::string RightAlign(const std::string& text, size_t width) {
+  return text.size() >= width ? text : std::string(width - text.size(), ' ') + text;
+}
+constexpr size_t kTimestampWidth = 8, kDeviceWidth = 3, kEmptyPoseFieldWidth = 4;
+
+// "<a>, <b>, <pose fields>" padded as the toolbox's files of rigs.txt and
+// trajectories.txt are: timestamp to 8, ids to 3, an empty pose field to 4
+// (t265). Numbers stay unpadded: the toolbox's m1x files have ", 0.0,"
+// (its newest writer would pad that to 4 as well; both read the same).
+std::string PosedLine(const std::string& a, size_t a_width, const std::string& b,
+                      const std::vector<std::string>& pose) {
+  std::vector<std::string> f = {RightAlign(a, a_width), RightAlign(b, kDeviceWidth)};
+  for (const std::string& p : pose) f.push_back(p.empty() ? RightAlign(p, kEmptyPoseFieldWidth) : p);
+  return JoinCsv(f);
+}
 
 void RequireNonEmpty(const CsvRow& row, size_t i, const std::string& file,
                      const std::string& field) {
@@ -106,8 +126,7 @@ Pose ParsePoseFields(const CsvRow& row, size_t first, const std::string& file, P
                        "empty while other fields of the " +
                            std::string(i < 4 ? "rotation" : "translation") + " are set");
   }
-  if (no_rotation && no_translation)
-    throw InputError(file, row.line, "qw", "pose has neither rotation nor translation");
+  // All seven empty: the toolbox's PoseTransform(None, None), the identity.
   Pose pose;
   if (!no_rotation) {
     for (int i = 0; i < 4; ++i)
@@ -126,22 +145,21 @@ Pose ParsePoseFields(const CsvRow& row, size_t first, const std::string& file, P
         throw InputError(file, row.line, kPoseFieldNames[i], "is not finite");
     pose.t = Eigen::Vector3d(v[4], v[5], v[6]);
   }
-  *parts = no_rotation ? PoseParts::kTranslationOnly
-                       : (no_translation ? PoseParts::kRotationOnly : PoseParts::kComplete);
+  *parts = static_cast<PoseParts>((no_rotation ? 0 : 1) | (no_translation ? 0 : 2));
   return pose;
 }
 
 std::vector<std::string> FormatPoseFields(const Pose& pose, PoseParts parts,
                                           const Eigen::Vector4d* raw_rotation) {
   std::vector<std::string> f(7);
-  if (parts != PoseParts::kTranslationOnly) {
+  if (HasRotation(parts)) {
     // The file's own numbers while they still describe this rotation.
     const bool raw = raw_rotation && UnitQuaternion(*raw_rotation).coeffs() == pose.q.coeffs();
     const Eigen::Vector4d wxyz =
         raw ? *raw_rotation : Eigen::Vector4d(pose.q.w(), pose.q.x(), pose.q.y(), pose.q.z());
     for (int i = 0; i < 4; ++i) f[i] = FormatDouble(wxyz[i]);
   }
-  if (parts != PoseParts::kRotationOnly) {
+  if (HasTranslation(parts)) {
     for (int i = 0; i < 3; ++i) f[4 + i] = FormatDouble(pose.t[i]);
   }
   return f;
@@ -274,11 +292,9 @@ void WriteRigs(const fs::path& path, const Rigs& rigs) {
   WriteText(path, kRigsColumns, [&](std::ostream& out) {
     for (const Rig& rig : rigs.list())
       for (const RigSensor& s : rig.sensors) {
-        std::vector<std::string> f = {rig.id, s.sensor_id};
         const auto pose = FormatPoseFields(s.sensor_from_rig, s.parts,
                                            s.raw_rotation ? &*s.raw_rotation : nullptr);
-        f.insert(f.end(), pose.begin(), pose.end());
-        out << JoinCsv(f) << "\n";
+        out << PosedLine(rig.id, kDeviceWidth, s.sensor_id, pose) << "\n";
       }
   });
 }
@@ -314,15 +330,11 @@ Trajectories ReadTrajectories(const fs::path& path, const std::string& display_n
 
 void WriteTrajectories(const fs::path& path, const Trajectories& trajectories) {
   WriteText(path, kTrajectoriesColumns, [&](std::ostream& out) {
-    char ts[32];
     for (const auto& [key, pose] : trajectories.poses) {
-      std::snprintf(ts, sizeof(ts), "%8lld", static_cast<long long>(key.first));
-      std::vector<std::string> f = {ts, key.second};
       const auto raw = trajectories.raw_rotations.find(key);
       const auto p = FormatPoseFields(pose, trajectories.PartsOf(key),
                                       raw == trajectories.raw_rotations.end() ? nullptr : &raw->second);
-      f.insert(f.end(), p.begin(), p.end());
-      out << JoinCsv(f) << "\n";
+      out << PosedLine(std::to_string(key.first), kTimestampWidth, key.second, p) << "\n";
     }
   });
 }
@@ -632,16 +644,35 @@ void WriteFeatureInfo(const fs::path& path, const FeatureInfo& info) {
 
 // ----------------------------------------------------------- reconstruction
 
+namespace {
+
+// 3 (X, Y, Z) or 6 (X, Y, Z, R, G, B) columns, as the column comment says
+// (the toolbox writes "# X, Y, Z" for points without colours), else as the
+// first data line has; 0 when neither tells yet.
+size_t Points3dColumns(const CsvReader& csv, const CsvRow* first_row) {
+  for (const std::string& c : csv.comments())
+    if (c.rfind(kPoints3dXyzColumns, 0) == 0)
+      return c.find("R, G, B") != std::string::npos ? 6 : 3;
+  if (first_row && first_row->fields.size() == 3) return 3;
+  return 6;
+}
+
+}  // namespace
+
 std::vector<Point3d> ParsePoints3d(std::istream& in, const std::string& display_name) {
   CsvReader csv(in, display_name);
   std::vector<Point3d> points;
   CsvRow row;
   static const char* kNames[6] = {"X", "Y", "Z", "R", "G", "B"};
+  size_t columns = 0;
   while (csv.Next(&row)) {
-    CheckFieldCount(row, csv.name(), 6, 6, kPoints3dColumns);
-    double v[6];
-    for (int i = 0; i < 6; ++i) v[i] = ParseDouble(Field(row, i), csv.name(), row.line, kNames[i]);
-    points.push_back({v[0], v[1], v[2], v[3], v[4], v[5]});
+    if (columns == 0) columns = Points3dColumns(csv, &row);
+    CheckFieldCount(row, csv.name(), columns, static_cast<int64_t>(columns),
+                    columns == 3 ? kPoints3dXyzColumns : kPoints3dColumns);
+    double v[6] = {0, 0, 0, 0, 0, 0};
+    for (size_t i = 0; i < columns; ++i)
+      v[i] = ParseDouble(Field(row, i), csv.name(), row.line, kNames[i]);
+    points.push_back({v[0], v[1], v[2], v[3], v[4], v[5], columns == 6});
   }
   return points;
 }
@@ -654,11 +685,17 @@ std::vector<Point3d> ReadPoints3d(const fs::path& path, const std::string& displ
 }
 
 void WritePoints3d(const fs::path& path, const std::vector<Point3d>& points) {
-  WriteText(path, kPoints3dColumns, [&](std::ostream& out) {
+  // The toolbox writes the colour columns unless the points have none.
+  const bool colors = points.empty() || std::any_of(points.begin(), points.end(),
+                                                    [](const Point3d& p) { return p.has_color; });
+  WriteText(path, colors ? kPoints3dColumns : kPoints3dXyzColumns, [&](std::ostream& out) {
     for (const Point3d& p : points) {
       out << FormatDoubleSavetxt(p.x) << ',' << FormatDoubleSavetxt(p.y) << ','
-          << FormatDoubleSavetxt(p.z) << ',' << FormatDoubleSavetxt(p.r) << ','
-          << FormatDoubleSavetxt(p.g) << ',' << FormatDoubleSavetxt(p.b) << '\n';
+          << FormatDoubleSavetxt(p.z);
+      if (colors)
+        out << ',' << FormatDoubleSavetxt(p.r) << ',' << FormatDoubleSavetxt(p.g) << ','
+            << FormatDoubleSavetxt(p.b);
+      out << '\n';
     }
   });
 }

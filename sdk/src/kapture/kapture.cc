@@ -18,6 +18,9 @@ std::string RecordsFile(const std::string& sensor_type) {
 std::string FeatureRoot(FeatureKind kind) {
   return std::string("reconstruction/") + FeatureKindFolder(kind);
 }
+std::string FeatureTarName(FeatureKind kind) {
+  return std::string(FeatureKindFolder(kind)) + ".tar";
+}
 std::string MatchesFile(const std::string& image1, const std::string& image2) {
   return image1 + ".overlapping/" + image2 + ".matches";
 }
@@ -39,6 +42,7 @@ struct Kapture::Cache {
   std::map<std::pair<FeatureKind, std::string>, FeatureSet> features;
   std::map<std::pair<FeatureKind, std::string>, FeatureSet> attached;
   std::string legacy_keypoints_type;  // set when reconstruction/keypoints is 1.0 style
+  std::map<std::string, std::shared_ptr<const TarArchive>> matches_archives;  // by type
 };
 
 Kapture::Kapture(fs::path root) : root_(std::move(root)), cache_(std::make_unique<Cache>()) {
@@ -200,25 +204,31 @@ fs::path Kapture::FeatureFile(FeatureKind kind, const std::string& type,
 
 bool Kapture::HasFeatureFile(FeatureKind kind, const std::string& type,
                              const std::string& image) const {
-  return IsFile(FeatureFile(kind, type, image));
+  return IsFile(FeatureFile(kind, type, image)) || ArchiveEntry(GetFeatureSet(kind, type), image);
 }
 
 FeatureArray Kapture::ReadFeatures(FeatureKind kind, const std::string& type,
                                    const std::string& image) const {
   const FeatureSet& set = GetFeatureSet(kind, type);
   const fs::path p = FeatureFile(kind, type, image);
-  return ReadFeatureFile(p, set.info.dtype, set.info.dsize, p.string());
+  const TarEntry* entry = ArchiveEntry(set, image);
+  if (IsFile(p) || !entry) return ReadFeatureFile(p, set.info.dtype, set.info.dsize, p.string());
+  return FeatureArrayFromBytes(set.archive->Read(*entry), set.info.dtype, set.info.dsize,
+                               EntryName(*set.archive, entry->name));
 }
 
 std::vector<std::string> Kapture::FeatureImages(FeatureKind kind, const std::string& type) const {
   const FeatureSet& set = GetFeatureSet(kind, type);
   const std::string ext = FeatureKindExtension(kind);
-  std::vector<std::string> images;
+  std::set<std::string> images;
   for (const fs::path& f : FilesUnder(set.dir)) {
     const std::string rel = Rel(f, set.dir);
-    if (EndsWith(rel, ext)) images.push_back(rel.substr(0, rel.size() - ext.size()));
+    if (EndsWith(rel, ext)) images.insert(rel.substr(0, rel.size() - ext.size()));
   }
-  return images;
+  if (set.archive)
+    for (const auto& [name, entry] : set.archive->entries())
+      if (EndsWith(name, ext)) images.insert(name.substr(0, name.size() - ext.size()));
+  return {images.begin(), images.end()};
 }
 
 namespace {
@@ -241,20 +251,45 @@ std::vector<std::string> Kapture::MatchesTypes() const {
   return types;
 }
 
+namespace {
+// "<image1>.overlapping/<image2>.matches" -> the pair; false for other names.
+bool ParseMatchesName(std::string rel, std::pair<std::string, std::string>* pair) {
+  if (!EndsWith(rel, ".matches")) return false;
+  rel.resize(rel.size() - 8);
+  const size_t sep = rel.find(".overlapping/");
+  if (sep == std::string::npos) return false;
+  *pair = {rel.substr(0, sep), rel.substr(sep + 13)};
+  return true;
+}
+}  // namespace
+
+const TarArchive* Kapture::MatchesArchive(const std::string& keypoints_type) const {
+  std::lock_guard<std::recursive_mutex> lock(cache_->mutex);
+  ScanFeatures();
+  auto it = cache_->matches_archives.find(keypoints_type);
+  if (it == cache_->matches_archives.end()) {
+    const fs::path dir = MatchesDirOf(root_, cache_->legacy_keypoints_type, keypoints_type);
+    const std::string display = Rel(dir, root_) + "/" + kMatchesTarName;
+    std::shared_ptr<const TarArchive> archive;
+    if (IsFile(dir / kMatchesTarName))
+      archive = std::make_shared<const TarArchive>(dir / kMatchesTarName, display);
+    it = cache_->matches_archives.emplace(keypoints_type, std::move(archive)).first;
+  }
+  return it->second.get();
+}
+
 std::vector<std::pair<std::string, std::string>> Kapture::MatchPairs(
     const std::string& keypoints_type) const {
   ScanFeatures();
   const fs::path dir = MatchesDirOf(root_, cache_->legacy_keypoints_type, keypoints_type);
-  std::vector<std::pair<std::string, std::string>> pairs;
-  for (const fs::path& f : FilesUnder(dir)) {
-    std::string rel = Rel(f, dir);
-    if (!EndsWith(rel, ".matches")) continue;
-    rel.resize(rel.size() - 8);
-    const size_t sep = rel.find(".overlapping/");
-    if (sep == std::string::npos) continue;
-    pairs.emplace_back(rel.substr(0, sep), rel.substr(sep + 13));
-  }
-  return pairs;
+  std::set<std::pair<std::string, std::string>> pairs;
+  std::pair<std::string, std::string> pair;
+  for (const fs::path& f : FilesUnder(dir))
+    if (ParseMatchesName(Rel(f, dir), &pair)) pairs.insert(pair);
+  if (const TarArchive* archive = MatchesArchive(keypoints_type))
+    for (const auto& [name, entry] : archive->entries())
+      if (ParseMatchesName(name, &pair)) pairs.insert(pair);
+  return {pairs.begin(), pairs.end()};
 }
 
 fs::path Kapture::MatchesPath(const std::string& keypoints_type, const std::string& image1,
@@ -265,23 +300,37 @@ fs::path Kapture::MatchesPath(const std::string& keypoints_type, const std::stri
                   std::string(layout::kMatches) + "/" + keypoints_type);
 }
 
+namespace {
+// The matches stored as (a, b): the loose file, else the archive's entry.
+std::optional<FeatureArray> StoredMatches(const fs::path& file, const TarArchive* archive,
+                                          const std::string& a, const std::string& b) {
+  if (IsFile(file)) return ReadFeatureFile(file, DType::kFloat64, 3, file.string());
+  const std::string name = layout::MatchesFile(a, b);
+  const TarEntry* entry = archive ? archive->Find(name) : nullptr;
+  if (!entry) return std::nullopt;
+  return FeatureArrayFromBytes(archive->Read(*entry), DType::kFloat64, 3,
+                               EntryName(*archive, name));
+}
+}  // namespace
+
 std::vector<Match> Kapture::ReadMatches(const std::string& keypoints_type,
                                         const std::string& image1,
                                         const std::string& image2) const {
+  // The toolbox's order (smaller name first), else the other one too.
   const bool swapped = image2 < image1;
-  fs::path p = swapped ? MatchesPath(keypoints_type, image2, image1)
-                       : MatchesPath(keypoints_type, image1, image2);
+  const std::string& a = swapped ? image2 : image1;
+  const std::string& b = swapped ? image1 : image2;
+  const TarArchive* archive = MatchesArchive(keypoints_type);
   bool reversed = swapped;
-  if (!IsFile(p)) {
-    // Not in the toolbox's order: accept the other one too.
-    const fs::path q = swapped ? MatchesPath(keypoints_type, image1, image2)
-                               : MatchesPath(keypoints_type, image2, image1);
-    if (!IsFile(q))
-      throw InputError(p.string(), 0, "", "missing matches file for (" + image1 + ", " + image2 + ")");
-    p = q;
+  std::optional<FeatureArray> array = StoredMatches(MatchesPath(keypoints_type, a, b), archive, a, b);
+  if (!array) {
+    array = StoredMatches(MatchesPath(keypoints_type, b, a), archive, b, a);
     reversed = !swapped;
   }
-  std::vector<Match> m = MatchesFromArray(ReadFeatureFile(p, DType::kFloat64, 3, p.string()));
+  if (!array)
+    throw InputError(MatchesPath(keypoints_type, a, b).string(), 0, "",
+                     "missing matches file for (" + image1 + ", " + image2 + ")");
+  std::vector<Match> m = MatchesFromArray(*array);
   if (reversed)
     for (Match& x : m) std::swap(x.index1, x.index2);
   return m;

@@ -105,6 +105,10 @@ struct FeatureArray {
 // truncated file, or the wrong dsize/dtype in the .txt).
 FeatureArray ReadFeatureFile(const fs::path& path, DType dtype, int64_t dsize,
                              const std::string& display_name = "");
+// The same check on bytes read elsewhere (an entry of a tar-packed type,
+// tar.h); `display_name` names it ("<archive>: entry '<name>'").
+FeatureArray FeatureArrayFromBytes(std::vector<uint8_t> bytes, DType dtype, int64_t dsize,
+                                   const std::string& display_name);
 // Writes the bytes exactly, atomically.
 void WriteFeatureFile(const fs::path& path, const FeatureArray& array);
 

@@ -40,14 +40,16 @@ void WriteRigs(const fs::path& path, const Rigs& rigs);
 // is refused.
 Trajectories ReadTrajectories(const fs::path& path, const std::string& display_name = "");
 Trajectories ParseTrajectories(std::istream& in, const std::string& display_name);
-// Sorted by (timestamp, device); timestamps right-aligned to 8 characters
-// as the toolbox writes them.
+// Sorted by (timestamp, device); timestamps right-aligned to 8 characters,
+// device ids to 3 and empty pose fields to 4, as the toolbox's files are
+// padded (csv.py PADDINGS; WriteRigs pads rig and sensor ids to 3).
 void WriteTrajectories(const fs::path& path, const Trajectories& trajectories);
 
 // Parses "qw, qx, qy, qz, tx, ty, tz" fields starting at row.fields[first]
 // into a pose with a unit quaternion. Four empty rotation fields make a
-// translation-only pose, three empty translation fields a rotation-only one
-// (`parts`). `raw_rotation` (optional) receives the file's quaternion when
+// translation-only pose, three empty translation fields a rotation-only one,
+// all seven empty the identity with neither part (PoseParts::kNone, as the
+// toolbox reads it) (`parts`). `raw_rotation` (optional) receives the file's quaternion when
 // normalising changed it.
 Pose ParsePoseFields(const CsvRow& row, size_t first, const std::string& file, PoseParts* parts,
                      std::optional<Eigen::Vector4d>* raw_rotation = nullptr);
@@ -139,6 +141,9 @@ void WriteFeatureInfo(const fs::path& path, const FeatureInfo& info);
 
 // ----------------------------------------------------------- reconstruction
 
+// "X, Y, Z, R, G, B" or "X, Y, Z" (points without colours: has_color false),
+// as the column comment says, else as the first line has; every line alike.
+// Written with the colour columns unless no point has a colour.
 std::vector<Point3d> ReadPoints3d(const fs::path& path, const std::string& display_name = "");
 std::vector<Point3d> ParsePoints3d(std::istream& in, const std::string& display_name);
 void WritePoints3d(const fs::path& path, const std::vector<Point3d>& points);

@@ -8,6 +8,11 @@
 //   reconstruction/global_features/<type>/global_features.txt + <image>.gfeat
 //   reconstruction/matches/<keypoints type>/<image1>.overlapping/<image2>.matches
 //   reconstruction/points3d.txt, reconstruction/observations.txt
+// A type folder may keep its per-image files packed in one archive instead
+// (kapture 1.1 tar-packed features, tar.h): <kind>/<type>/<kind>.tar
+// holding "<image><ext>", matches/<type>/matches.tar holding
+// "<image1>.overlapping/<image2>.matches". They are read in place; a file
+// present both loose and in the archive reads from the loose file.
 // The kapture 1.0 single-type layout (reconstruction/keypoints/keypoints.txt
 // + <image>.kpt, matches/<image1>.overlapping/...) is read too, with the
 // type named by the .txt's `name`, and kept as it was by CopyKapture.
@@ -31,6 +36,7 @@
 #include "locforge/fs.h"
 #include "locforge/kapture/features.h"
 #include "locforge/kapture/io.h"
+#include "locforge/kapture/tar.h"
 #include "locforge/kapture/types.h"
 
 namespace locforge::kapture {
@@ -49,6 +55,9 @@ inline constexpr const char* kMatches = "reconstruction/matches";
 std::string RecordsFile(const std::string& sensor_type);
 // "reconstruction/keypoints" etc.
 std::string FeatureRoot(FeatureKind kind);
+// "keypoints.tar", "descriptors.tar", "global_features.tar": a type
+// folder's archive.
+std::string FeatureTarName(FeatureKind kind);
 // "<image1>.overlapping/<image2>.matches" (no ordering applied).
 std::string MatchesFile(const std::string& image1, const std::string& image2);
 }  // namespace layout
@@ -60,6 +69,8 @@ struct FeatureSet {
   fs::path dir;        // holds <kind>.txt and the per-image files
   FeatureInfo info;
   bool legacy_layout = false;  // 1.0: dir is reconstruction/<kind> itself
+  // dir/<kind>.tar when the type is tar-packed (indexed once), else null.
+  std::shared_ptr<const TarArchive> archive;
 };
 
 class Kapture {
@@ -118,7 +129,8 @@ class Kapture {
   // while other threads read the same type.
   void AttachFeatures(FeatureKind kind, const std::string& type, const fs::path& dir);
 
-  // <dir>/<image><ext>, refusing escapes.
+  // <dir>/<image><ext>, refusing escapes. For a tar-packed type this loose
+  // path need not exist: use HasFeatureFile / ReadFeatures.
   fs::path FeatureFile(FeatureKind kind, const std::string& type, const std::string& image) const;
   bool HasFeatureFile(FeatureKind kind, const std::string& type, const std::string& image) const;
   // Reads one image's file with the dtype/dsize of the type; InputError on a
@@ -134,13 +146,16 @@ class Kapture {
   FeatureArray ReadGlobalFeatures(const std::string& type, const std::string& image) const {
     return ReadFeatures(FeatureKind::kGlobalFeatures, type, image);
   }
-  // Images with a file of this type (walks the folder), sorted.
+  // Images with a file of this type (walks the folder, lists the archive),
+  // sorted.
   std::vector<std::string> FeatureImages(FeatureKind kind, const std::string& type) const;
 
   // --- matches
   std::vector<std::string> MatchesTypes() const;
-  // (image1, image2) pairs with a .matches file, image1 < image2, sorted.
+  // (image1, image2) pairs with a .matches file (loose or in the type's
+  // matches.tar), image1 < image2, sorted.
   std::vector<std::pair<std::string, std::string>> MatchPairs(const std::string& keypoints_type) const;
+  // The loose file's path (for a tar-packed type it need not exist).
   fs::path MatchesPath(const std::string& keypoints_type, const std::string& image1,
                        const std::string& image2) const;
   // Either image order: when (image1, image2) is stored as (image2, image1)
@@ -156,6 +171,8 @@ class Kapture {
  private:
   struct Cache;
   void ScanFeatures() const;
+  // matches/<type>/matches.tar, indexed on first use; null when absent.
+  const TarArchive* MatchesArchive(const std::string& keypoints_type) const;
   fs::path root_;
   std::unique_ptr<Cache> cache_;
 };
@@ -225,6 +242,9 @@ struct CopyReport {
 // Reads everything under `src` and writes it to `dst`: text files parsed and
 // re-emitted in the toolbox's format, records streamed, feature and matches
 // files validated (size vs dtype/dsize) and re-written byte for byte,
+// feature and matches archives (tar-packed types) kept packed: every entry
+// validated the same way, the archive copied byte for byte (counted as one
+// binary file),
 // records_data files copied, unrecognised files copied verbatim (listed in
 // notes). Refuses (InputError) a destination equal to, inside or containing
 // the source, a non-empty destination unless options.overwrite, and any

@@ -18,7 +18,9 @@ namespace locforge::kapture {
 
 // The pose of `device_id` at `timestamp`: its own trajectory entry if any,
 // else the composition with the trajectory entry of the rig holding it.
-// Partial poses (rotation- or translation-only) are not composed.
+// Partial poses (rotation- or translation-only, or neither, like t265's
+// empty rig poses) are not composed: the toolbox's PoseTransform.compose
+// asserts both parts too.
 std::optional<Pose> DevicePose(const Trajectories& trajectories, const Rigs& rigs,
                                Timestamp timestamp, const std::string& device_id);
 

@@ -92,13 +92,18 @@ class Sensors {
 // ------------------------------------------------------------------ poses
 
 // kapture lets a pose omit its rotation or its translation (empty fields):
-// a rotation-only or translation-only pose. The missing part reads as
-// identity in the Pose; these flags remember it so it is written back empty.
+// a rotation-only or translation-only pose, or neither (all seven fields
+// empty: the toolbox's PoseTransform(None, None), e.g. the sensors of
+// t265's rigs.txt). The missing part reads as identity in the Pose; these
+// flags remember it so it is written back empty, as the toolbox writes it.
 enum class PoseParts : uint8_t {
   kComplete = 3,
   kRotationOnly = 1,
   kTranslationOnly = 2,
+  kNone = 0,
 };
+inline bool HasRotation(PoseParts parts) { return (static_cast<uint8_t>(parts) & 1) != 0; }
+inline bool HasTranslation(PoseParts parts) { return (static_cast<uint8_t>(parts) & 2) != 0; }
 
 // One sensor of a rig: T_sensor_rig.
 struct RigSensor {
@@ -231,9 +236,13 @@ struct GenericRecord {
 
 // --------------------------------------------------------- reconstruction
 
+// points3d.txt holds "X, Y, Z, R, G, B" or, for points without colours
+// (e.g. an openMVG export), "X, Y, Z" only. A file is one or the other;
+// WritePoints3d writes the colour columns unless no point has a colour.
 struct Point3d {
   double x = 0, y = 0, z = 0;
   double r = 0, g = 0, b = 0;  // colour 0..255, stored as float64 by the toolbox
+  bool has_color = true;       // false when read from an X, Y, Z file (r, g, b are 0)
 };
 
 // One line of observations.txt (1.1): the keypoints of one type that see
