@@ -13,7 +13,7 @@ namespace {
 
 const char kKaptureHelp[] =
     "Usage: locforge kapture info DIR [--strict]\n"
-    "       locforge kapture copy SRC DST [--overwrite] [--no-records-data]\n"
+    "       locforge kapture copy SRC DST [--overwrite] [--no-records-data] [--unpack]\n"
     "\n"
     "Tools for kapture 1.1 datasets (sensors/, reconstruction/).\n"
     "\n"
@@ -29,11 +29,14 @@ const char kKaptureHelp[] =
     "  copy SRC DST Reads everything under SRC and writes it to DST: text files\n"
     "               re-emitted in the kapture toolbox's format, feature and matches\n"
     "               files checked against their dtype/dsize and re-written byte for\n"
-    "               byte, sensors/records_data copied, other files copied verbatim.\n"
+    "               byte, tar-packed feature and matches files (kapture 1.1's\n"
+    "               <kind>.tar, matches.tar) checked and kept packed, byte for byte,\n"
+    "               sensors/records_data copied, other files copied verbatim.\n"
     "               Refuses a DST that is SRC, inside SRC or contains it, and record\n"
     "               paths leaving SRC. Record files missing in SRC are listed.\n"
     "      --overwrite      allow a DST folder that exists and is not empty\n"
     "      --no-records-data  do not copy sensors/records_data (images, scans)\n"
+    "      --unpack         write the files of tar-packed types loose instead\n"
     "\n"
     "Exit status: 0 done, 1 the work failed (or --strict and problems found),\n"
     "2 bad usage or bad input (the message names the file, line and field).\n";
@@ -81,6 +84,8 @@ int Copy(const Args& args) {
       options.overwrite = true;
     } else if (a == "--no-records-data") {
       options.copy_records_data = false;
+    } else if (a == "--unpack") {
+      options.unpack_archives = true;
     } else if (a.rfind("--", 0) == 0) {
       return UsageError("kapture", "unknown option '" + a + "' for copy");
     } else {

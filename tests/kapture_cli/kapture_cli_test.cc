@@ -167,7 +167,7 @@ TEST(KaptureCli, InfoToolboxSamples) {
   EXPECT_FALSE(Has(openmvg, "reconstruction: 0 points3d")) << openmvg.output;
 }
 
-TEST(KaptureCli, CopyKeepsTarPackedFeaturesAndRefusesADamagedArchive) {
+TEST(KaptureCli, CopyKeepsTarPackedFeaturesUnpacksOnRequestAndRefusesADamagedArchive) {
   LOCFORGE_SHARED_PATH_OR_SKIP(src, "data/kapture/toolbox_samples/berlin_tar");
   const fs::path tmp = locforge::testing::MakeTempDir("kapture_cli_tar");
   const fs::path dst = tmp / "out";
@@ -177,6 +177,24 @@ TEST(KaptureCli, CopyKeepsTarPackedFeaturesAndRefusesADamagedArchive) {
   for (const std::string rel : {kpt, std::string("reconstruction/descriptors/HOG/descriptors.tar"),
                                 std::string("reconstruction/matches/HessianAffine/matches.tar")})
     EXPECT_TRUE(locforge::ReadFile(src / rel) == locforge::ReadFile(dst / rel)) << rel;
+  // --unpack: the files written loose, as the unpacked sample holds them.
+  LOCFORGE_SHARED_PATH_OR_SKIP(loose, "data/kapture/toolbox_samples/berlin");
+  const fs::path unpacked = tmp / "unpacked";
+  const Result u = RunKapture("copy --unpack " + Quote(src.string()) + " " + Quote(unpacked.string()));
+  ASSERT_EQ(u.code, 0) << u.output;
+  EXPECT_TRUE(Has(u, "9 feature/matches files")) << u.output;
+  int64_t loose_files = 0;
+  for (const auto& e : fs::recursive_directory_iterator(loose / "reconstruction")) {
+    if (!e.is_regular_file() || e.path().extension() == ".txt") continue;
+    ++loose_files;
+    const std::string rel = e.path().lexically_relative(loose).generic_string();
+    EXPECT_TRUE(locforge::ReadFile(e.path()) == locforge::ReadFile(unpacked / rel)) << rel;
+  }
+  EXPECT_EQ(loose_files, 9);
+  EXPECT_FALSE(fs::exists(unpacked / kpt));
+  const Result a = RunKapture("info " + Quote(loose.string()));
+  const Result b = RunKapture("info " + Quote(unpacked.string()));
+  EXPECT_EQ(a.output.substr(a.output.find('\n')), b.output.substr(b.output.find('\n')));
   // Another mtime digit in the first entry's header: its checksum no longer holds.
   std::string bytes = locforge::ReadFile(dst / kpt);
   bytes[140] = bytes[140] == '0' ? '1' : '0';

@@ -74,11 +74,34 @@ void RewriteFeatureFile(const fs::path& from, const fs::path& to, DType dtype, i
   WriteFeatureFile(to, ReadFeatureFile(from, dtype, dsize, display));
 }
 
+// Writes the entries of an archive as loose files beside `to`, feature
+// files checked (a loose file of the source with the same name wins, as it
+// does when reading). Returns the number of files written.
+int64_t UnpackArchive(const TarArchive& archive, const fs::path& from, const fs::path& to,
+                      const std::string& ext, DType dtype, int64_t dsize) {
+  int64_t n = 0;
+  for (const auto& [name, entry] : archive.entries()) {
+    if (IsFile(from.parent_path() / name)) continue;
+    const fs::path out = SafeJoin(to.parent_path(), name, EntryName(archive, name));
+    std::vector<uint8_t> bytes = archive.Read(entry);
+    if (EndsWith(name, ext))
+      WriteFeatureFile(out, FeatureArrayFromBytes(std::move(bytes), dtype, dsize,
+                                                  EntryName(archive, name)));
+    else
+      WriteFileAtomic(out, std::string_view(reinterpret_cast<const char*>(bytes.data()),
+                                            bytes.size()));
+    ++n;
+  }
+  return n;
+}
+
 // Every entry of an archive with `ext` holds whole rows of dtype x dsize;
-// then the archive is copied byte for byte (kept packed).
-void CopyArchive(const fs::path& from, const fs::path& to, const std::string& ext, DType dtype,
-                 int64_t dsize, const std::string& display) {
+// then the archive is copied byte for byte (kept packed), or unpacked.
+// Returns the number of files written.
+int64_t CopyArchive(const fs::path& from, const fs::path& to, const std::string& ext, DType dtype,
+                    int64_t dsize, const std::string& display, bool unpack) {
   const TarArchive archive(from, display);
+  if (unpack) return UnpackArchive(archive, from, to, ext, dtype, dsize);
   const uint64_t row_bytes = static_cast<uint64_t>(dsize) * DTypeSize(dtype);
   for (const auto& [name, entry] : archive.entries())
     if (EndsWith(name, ext) && entry.size % row_bytes != 0)
@@ -87,6 +110,7 @@ void CopyArchive(const fs::path& from, const fs::path& to, const std::string& ex
                            std::to_string(row_bytes) + " (dsize " + std::to_string(dsize) +
                            " x sizeof(" + DTypeName(dtype) + "))");
   CopyVerbatim(from, to);
+  return 1;
 }
 
 template <class Record>
@@ -219,15 +243,15 @@ CopyReport CopyKapture(const fs::path& src, const fs::path& dst, const CopyOptio
         ++report.binary_files;
       } else if (owner && parent == owner->dir && owner->archive &&
                  file.filename() == layout::FeatureTarName(owner->kind)) {
-        CopyArchive(file, out, ext, owner->info.dtype, owner->info.dsize, rel);
-        ++report.binary_files;
+        report.binary_files += CopyArchive(file, out, ext, owner->info.dtype, owner->info.dsize,
+                                           rel, options.unpack_archives);
       } else if (rel.rfind(std::string(layout::kMatches) + "/", 0) == 0 &&
                  EndsWith(rel, ".matches")) {
         RewriteFeatureFile(file, out, DType::kFloat64, 3, rel);
         ++report.binary_files;
       } else if (IsMatchesArchive(rel, match_types)) {
-        CopyArchive(file, out, ".matches", DType::kFloat64, 3, rel);
-        ++report.binary_files;
+        report.binary_files +=
+            CopyArchive(file, out, ".matches", DType::kFloat64, 3, rel, options.unpack_archives);
       } else {
         CopyVerbatim(file, out);
         ++report.other_files;

@@ -47,11 +47,14 @@ bool ParseDigits(const std::string& text, uint64_t base, uint64_t* value) {
   return true;
 }
 
-// The header checksum: every byte summed with the checksum field as spaces.
-uint64_t Checksum(const char* b) {
-  uint64_t sum = 0;
+// The header checksum: every byte summed with the checksum field as spaces,
+// bytes unsigned (POSIX) or, as some old tars wrote it, signed.
+int64_t Checksum(const char* b, bool signed_bytes) {
+  int64_t sum = 0;
   for (uint64_t i = 0; i < kBlock; ++i)
-    sum += (i >= 148 && i < 156) ? ' ' : static_cast<unsigned char>(b[i]);
+    sum += (i >= 148 && i < 156) ? ' '
+           : signed_bytes        ? static_cast<signed char>(b[i])
+                                 : static_cast<unsigned char>(b[i]);
   return sum;
 }
 
@@ -148,7 +151,9 @@ void CheckHeader(const char* block, const Header& h, uint64_t pos, const std::st
   if (!posix && !gnu)
     throw InputError(archive, 0, "", Where(pos, h.name) + ": not a ustar header (bad magic)");
   uint64_t stored = 0;
-  if (!ParseDigits(h.checksum_text, 8, &stored) || stored != Checksum(block))
+  const bool parsed = ParseDigits(h.checksum_text, 8, &stored);
+  if (!parsed || (static_cast<int64_t>(stored) != Checksum(block, false) &&
+                  static_cast<int64_t>(stored) != Checksum(block, true)))
     throw InputError(archive, 0, "", Where(pos, h.name) + ": bad header checksum");
 }
 

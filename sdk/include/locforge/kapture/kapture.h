@@ -225,6 +225,9 @@ struct CopyOptions {
   bool copy_records_data = true;
   // Allow a destination folder that exists and is not empty.
   bool overwrite = false;
+  // Write the files of tar-packed feature and matches types loose (checked
+  // like loose ones) instead of copying their archives.
+  bool unpack_archives = false;
 
   bool Check(std::string* why) const;
 };
@@ -244,7 +247,7 @@ struct CopyReport {
 // files validated (size vs dtype/dsize) and re-written byte for byte,
 // feature and matches archives (tar-packed types) kept packed: every entry
 // validated the same way, the archive copied byte for byte (counted as one
-// binary file),
+// binary file), or with options.unpack_archives written loose,
 // records_data files copied, unrecognised files copied verbatim (listed in
 // notes). Refuses (InputError) a destination equal to, inside or containing
 // the source, a non-empty destination unless options.overwrite, and any
