@@ -113,6 +113,7 @@ void MapperParams::AddTo(std::vector<std::string>* args) const {
   AddMapperOption(args, "ba_local_max_num_iterations", ba_local_max_num_iterations);
   AddMapperOption(args, "abs_pose_max_error", abs_pose_max_error);
   AddMapperOption(args, "filter_max_reproj_error", filter_max_reproj_error);
+  AddMapperOption(args, "tri_ignore_two_view_tracks", ignore_two_view_tracks ? 1 : 0);
 }
 
 int WriteRegisteredQueries(const Reconstruction& model, const kapture::Kapture& query,

@@ -70,6 +70,9 @@ struct MapperParams {
   int ba_local_max_num_iterations;
   double abs_pose_max_error;
   double filter_max_reproj_error;
+  // COLMAP skips a feature seen in only two images (a two-view track) when
+  // it triangulates; a sparse map (few, far-apart images) is mostly such tracks.
+  bool ignore_two_view_tracks = true;
   void AddTo(std::vector<std::string>* args) const;
 };
 // The paper's values: point_triangulator (mapping) and image_registrator
@@ -88,6 +91,7 @@ struct MapperOptions {
   int ba_local_max_num_iterations = kDefaults.ba_local_max_num_iterations;
   double abs_pose_max_error = kDefaults.abs_pose_max_error;
   double filter_max_reproj_error = kDefaults.filter_max_reproj_error;
+  bool ignore_two_view_tracks = kDefaults.ignore_two_view_tracks;
   std::string keypoints_type;  // empty = the features' only keypoints type
   double timeout_s = 0;        // kill colmap after this many seconds (0: never)
   static void Declare(ParamSchema<MapperOptions>& s) {
@@ -103,13 +107,15 @@ struct MapperOptions {
     s.Add("abs_pose_max_error", &O::abs_pose_max_error, "Mapper.abs_pose_max_error (px)").Min(0.01);
     s.Add("filter_max_reproj_error", &O::filter_max_reproj_error,
           "Mapper.filter_max_reproj_error (px)").Min(0.01);
+    s.Add("ignore_two_view_tracks", &O::ignore_two_view_tracks,
+          "Mapper.tri_ignore_two_view_tracks: leave features seen by only two images untriangulated");
     s.Add("keypoints_type", &O::keypoints_type, "keypoints type; empty = the only one");
     s.Add("timeout_s", &O::timeout_s, "kill colmap after this many seconds (0: never)").Min(0).NoCacheKey();
   }
   MapperParams Mapper() const {
     return {min_num_matches, init_min_num_inliers, abs_pose_min_num_inliers,
             abs_pose_min_inlier_ratio, ba_local_max_num_iterations, abs_pose_max_error,
-            filter_max_reproj_error};
+            filter_max_reproj_error, ignore_two_view_tracks};
   }
 };
 using TriangulatorOptions = MapperOptions<kPaperTriangulator>;
