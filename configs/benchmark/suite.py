@@ -108,6 +108,7 @@ def score(per_query_csv, thresholds):
 def ensure_recording(args, name, spec):
     """The data a simulator protocol runs on, made once under SUITE/_data/NAME."""
     ws = args.workspace / "_data" / name
+    ws.parent.mkdir(parents=True, exist_ok=True)
     if not (ws / "nodes").exists() or args.fresh_data:
         print(f"[{name}] making its data: locforge run {' '.join(spec['recording'])}", flush=True)
         code, wall, _ = run([str(args.locforge), "run", str(REPO / spec["recording"][0]),
@@ -129,8 +130,9 @@ def main():
     p.add_argument("--methods", default="ours,colmap_classic", help="comma-separated subset")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--set", action="append", default=[], help="extra --set for the 'ours' graph")
-    p.add_argument("--reuse", action="store_true",
-                   help="keep a method's finished run (and its recorded times) instead of re-running it")
+    p.add_argument("--reuse", nargs="?", const="all", default="",
+                   help="keep these methods' finished runs (comma-separated; no value: every method) "
+                        "and their recorded times when their command is unchanged, instead of re-running them")
     p.add_argument("--fresh-data", action="store_true", help="re-make the simulator recordings")
     args = p.parse_args()
     args.workspace = args.workspace.resolve()
@@ -159,7 +161,8 @@ def main():
             cmd = [str(args.locforge), "run", str(REPO / graph), "--workspace", str(ws),
                    "--threads", str(args.threads), "--set", f"map={map_dir}",
                    "--set", f"query={query_dir}"] + spec["args"] + extra
-            if args.reuse and timing.exists() and json.loads(timing.read_text())["cmd"] == cmd:
+            reuse = args.reuse == "all" or method in args.reuse.split(",")
+            if reuse and timing.exists() and json.loads(timing.read_text())["cmd"] == cmd:
                 t = json.loads(timing.read_text())
             else:
                 if ws.exists():

@@ -25,7 +25,8 @@ struct PnPOptions {
   int max_iterations = 10000;  // RANSAC iterations at most.
   int min_inliers = 10;        // Fewer inliers: the query fails.
   double min_inlier_ratio = 0.0;  // Lower inlier ratio: the query fails.
-  double cauchy_scale_px = 0.5;   // Cauchy loss scale of the refinement (1.0 before pnp 1.3.0; configs/benchmark/README.md, attribution)
+  double cauchy_scale_px = 0.5;   // Cauchy loss scale of the refinement (the final one's floor)
+  double cauchy_noise_factor = 2.385;  // final refinement's scale >= this x the inliers' noise sigma (0: off)
   int64_t seed = 0;               // RANSAC seed (deterministic).
   bool rig_queries = false;       // Query cameras of one rig at one timestamp share a pose.
   std::string keypoints_type;     // Query keypoints type; "" = the only one.
@@ -38,6 +39,9 @@ struct PnPOptions {
     s.Add("min_inliers", &PnPOptions::min_inliers, "fewer inliers: the query fails").Min(3);
     s.Add("min_inlier_ratio", &PnPOptions::min_inlier_ratio, "lower inlier ratio: the query fails").Range(0, 1);
     s.Add("cauchy_scale_px", &PnPOptions::cauchy_scale_px, "Cauchy loss scale of the Ceres refinement, pixels").Min(1e-3);
+    s.Add("cauchy_noise_factor", &PnPOptions::cauchy_noise_factor,
+          "> 0: the final refinement's Cauchy scale is at least this times the inliers' measured noise "
+          "(per-axis sigma, pixels); 0: cauchy_scale_px alone").Range(0, 10);
     s.Add("seed", &PnPOptions::seed, "RANSAC random seed").Min(0);
     s.Add("rig_queries", &PnPOptions::rig_queries, "query cameras of one rig at one timestamp share one rig pose");
     s.Add("keypoints_type", &PnPOptions::keypoints_type, "query keypoints type; empty = the only one");
@@ -53,6 +57,7 @@ struct PnPOptions {
     r.min_inlier_ratio = min_inlier_ratio;
     r.seed = static_cast<uint64_t>(seed);
     r.refine.cauchy_scale_px = cauchy_scale_px;
+    r.refine.noise_factor = cauchy_noise_factor;
     return r;
   }
 };
@@ -93,7 +98,7 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
              {"matches", "kapture.matches", "query-to-map matches"}},
             {{"trajectories", "kapture.trajectories",
               "estimated query poses (+ failures.txt, localization_stats.csv)"}}};
-    meta.version = "1.3.0";  // 1.3.0: cauchy_scale_px 0.5 (was 1)
+    meta.version = "1.4.0";  // 1.4.0: final refinement's scale from the inliers' noise, always kept
     return meta;
   }
   using PerItemStage::PerItemStage;

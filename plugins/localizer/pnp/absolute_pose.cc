@@ -129,6 +129,18 @@ std::vector<int> InliersOf(const std::vector<Correspondence>& cs,
   return inliers;
 }
 
+// Per-axis sigma of the inliers' reprojection noise, pixels: the median
+// residual norm of 2D Gaussian noise is sigma sqrt(2 ln 2) (Rayleigh).
+double InlierNoiseSigmaPx(const std::vector<Correspondence>& cs, const std::vector<RigCamera>& cameras,
+                          const Pose& pose, const std::vector<int>& inliers) {
+  if (inliers.empty()) return 0;
+  std::vector<double> norms;
+  norms.reserve(inliers.size());
+  for (int i : inliers) norms.push_back(std::sqrt(SquaredReprojectionError(pose, cameras[cs[i].camera], cs[i])));
+  std::nth_element(norms.begin(), norms.begin() + norms.size() / 2, norms.end());
+  return norms[norms.size() / 2] / std::sqrt(2 * std::log(2.0));
+}
+
 std::vector<Correspondence> Subset(const std::vector<Correspondence>& cs,
                                    const std::vector<int>& idx) {
   std::vector<Correspondence> out;
@@ -425,14 +437,19 @@ AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& cs,
     result.failure = "RANSAC found no pose with 3 or more inliers";
     return result;
   }
-  // Final refinement on all inliers, then inliers measured again.
+  // Final refinement on all inliers, then inliers measured again. The
+  // refinement lowers the robust cost from RANSAC's pose, so it is kept even
+  // when a few inliers move past the threshold: counting them is the coarser
+  // criterion, and refusing the refined pose would keep a less accurate one.
   Pose refined = best_pose;
-  if (RefinePose(Subset(cs, best_inliers), cameras, options.refine, &refined)) {
-    std::vector<int> inliers = InliersOf(cs, cameras, refined, th2, nullptr);
-    if (inliers.size() >= best_inliers.size()) {
-      best_pose = refined;
-      best_inliers = std::move(inliers);
-    }
+  RefineOptions final_refine = options.refine;
+  if (final_refine.noise_factor > 0)
+    final_refine.cauchy_scale_px = std::max(
+        final_refine.cauchy_scale_px,
+        final_refine.noise_factor * InlierNoiseSigmaPx(cs, cameras, best_pose, best_inliers));
+  if (RefinePose(Subset(cs, best_inliers), cameras, final_refine, &refined)) {
+    best_pose = refined;
+    best_inliers = InliersOf(cs, cameras, refined, th2, nullptr);
   }
   result.rig_from_world = best_pose;
   result.num_inliers = static_cast<int>(best_inliers.size());
