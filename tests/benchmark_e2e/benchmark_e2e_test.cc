@@ -183,20 +183,23 @@ void ExpectAtLeastColmapClassic(const ColmapClassicFloor& floor) {
 // The floors come from the protocol suite (configs/benchmark/README.md, "The
 // protocol suite"), COLMAP 3.8 classic at --threads 2 on the 2-core machine:
 //   python3 configs/benchmark/suite.py --workspace SUITE --methods colmap_classic \
-//       --protocols virtual_gallery_tutorial,strecha_castle-P30_sparse,strecha_fountain-P11
+//       --protocols virtual_gallery_tutorial,strecha_castle-P30_sparse,strecha_entry-P10
 // Virtual Gallery's is the better of two earlier runs (2026-12-03).
 TEST(BenchmarkE2E, VirtualGalleryAtLeastColmapClassic) {
   ExpectAtLeastColmapClassic({"data/kapture/virtual_gallery_tutorial", 4, {100, 100, 100}, 0.00207, 0.0325});
 }
 
 // Real photographs with LiDAR-registered poses: a sparse map of a courtyard
-// (wide baselines, a facade repeated on four sides), and a few views of a fountain.
+// (wide baselines, a facade repeated on four sides; COLMAP classic is not
+// deterministic there: 62.5 % in the suite's run, 75 % in an earlier one, and
+// the floor is the better of the two, recall and medians alike), and the few
+// views of a building's entry (strong depth changes).
 TEST(BenchmarkE2E, StrechaCastleSparseAtLeastColmapClassic) {
-  ExpectAtLeastColmapClassic({"data/localization/strecha_castle-P30_sparse", 24, {CASTLE_TBD}, 0, 0});
+  ExpectAtLeastColmapClassic({"data/localization/strecha_castle-P30_sparse", 24, {75, 75, 75}, 0.028, 0.046});
 }
 
-TEST(BenchmarkE2E, StrechaFountainAtLeastColmapClassic) {
-  ExpectAtLeastColmapClassic({"data/localization/strecha_fountain-P11", 5, {FOUNTAIN_TBD}, 0, 0});
+TEST(BenchmarkE2E, StrechaEntryAtLeastColmapClassic) {
+  ExpectAtLeastColmapClassic({"data/localization/strecha_entry-P10", 5, {100, 100, 100}, 0.00677, 0.0216});
 }
 
 }  // namespace
