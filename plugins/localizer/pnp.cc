@@ -25,7 +25,7 @@ struct PnPOptions {
   int max_iterations = 10000;  // RANSAC iterations at most.
   int min_inliers = 10;        // Fewer inliers: the query fails.
   double min_inlier_ratio = 0.0;  // Lower inlier ratio: the query fails.
-  double cauchy_scale_px = 0.5;   // Cauchy loss scale of the refinement (1.0 before pnp 1.3.0; configs/benchmark/README.md, attribution)
+  double cauchy_scale_px = 0.5;   // Cauchy loss scale of the refinement (1.0 before pnp 1.3.0; docs/results/benchmark.md, attribution table)
   int64_t seed = 0;               // RANSAC seed (deterministic).
   bool rig_queries = false;       // Query cameras of one rig at one timestamp share a pose.
   std::string keypoints_type;     // Query keypoints type; "" = the only one.

@@ -148,7 +148,7 @@ TEST(BenchmarkE2E, SiftDenseVladBothSolversOnTinySimulator) {
 // median 2.07 mm / 0.0325 deg and 2.11 mm / 0.0345 deg, 202 and 210 CPU-s,
 // 105 and 109 s, by
 //   locforge run configs/benchmark/colmap_classic.yaml --workspace W --threads 2
-// (configs/benchmark/README.md, side by side on three protocols); ours in the
+// (docs/results/benchmark.md, side by side on three protocols); ours in the
 // same sequence: 100 %, 1.77 mm / 0.0250 deg, 47 CPU-s, 26 s. The bounds below
 // are the better of COLMAP's two runs.
 TEST(BenchmarkE2E, VirtualGalleryAtLeastColmapClassic) {
