@@ -26,7 +26,7 @@ const std::set<std::string> kReservedOptions = {
     "chdir",  "kill-on-invalid-dep",  "export", "input",    "open-mode", "wait"};
 
 // Built-in requests per stage kind: (selector, option, value). The figures
-// come from the measured costs in the README's cost model: shards of
+// come from the measured costs of docs/results/cost-model.md: shards of
 // per-item stages stay under 2 GB; the whole-set stages that do not shard
 // (SLAM, triangulation, the bundle adjustment) get the memory and time a
 // floor needs.

@@ -3,7 +3,7 @@
 // two-view verification, spline bundle adjustment loop) started from a
 // calibration perturbed away from the truth (3 % focal, 1.5 deg rotation),
 // + eval/calibration of the starting and the refined poses/calibration
-// against the simulator's truth. Measured numbers: plugins/gt/README.md.
+// against the simulator's truth. Measured numbers: docs/results/ground-truth.md.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -70,7 +70,7 @@ TEST(SfmGtPipeline, TinyRecordingRefinedFromPerturbedCalibration) {
   EXPECT_LT(reproj, 1.0);
   // Refined poses closer to the truth than the LiDAR poses (with the
   // perturbed extrinsics), focal lengths and camera rotations recovered
-  // (measured figures: plugins/gt/README.md).
+  // (measured figures: docs/results/ground-truth.md).
   EXPECT_LT(refined.at("position RMS (cm)"), 0.6 * start.at("position RMS (cm)"));
   EXPECT_LT(refined.at("rotation RMS (deg)"), 0.2 * start.at("rotation RMS (deg)"));
   EXPECT_NEAR(start.at("focal error RMS (%)"), 3.0, 1e-6);
@@ -81,7 +81,7 @@ TEST(SfmGtPipeline, TinyRecordingRefinedFromPerturbedCalibration) {
 
 // configs/gt/lidar_depth.yaml on `tiny`: the LiDAR map projected into every
 // mapping image, against the simulator's exact depth (measured on seed 0:
-// coverage 79 %, median 1.25 cm, 85 % within 5 cm; README of plugins/gt).
+// coverage 79 %, median 1.25 cm, 85 % within 5 cm; `small`: docs/results/ground-truth.md).
 TEST(LidarDepthPipeline, TinyRecordingAgainstExactDepth) {
   const fs::path bin = LOCFORGE_BINARY_DIR;
   const fs::path src = LOCFORGE_SOURCE_DIR;

@@ -34,7 +34,7 @@ struct GicpOptions {
   double covariance_epsilon = 1e-3;          // Normal-direction eigenvalue of the plane prior.
   // none | huber | cauchy. Cauchy by default: points without a true
   // counterpart (people walking through an indoor scan) otherwise pull every
-  // registration toward zero motion (figures: plugins/common/lidar/README.md).
+  // registration toward zero motion (figures: docs/results/slam-history.md).
   std::string robust_kernel = "cauchy";
   double kernel_width = 0.25;                // In units of the Mahalanobis distance.
   std::string optimizer = "gauss_newton";    // gauss_newton | levenberg_marquardt.

@@ -232,7 +232,7 @@ Pose ReadMatrix(const std::filesystem::path& file) {
 // each other within ~0.15 deg / 2 cm but differ from the shipped
 // T_target_source by ~0.67 deg (almost all roll) and 1-3 cm. Our GICP's
 // default Cauchy kernel (width 0.25) lands within 0.25 deg / 1.1 cm of it:
-// the roll was the pull of points without a counterpart (README.md). The
+// the roll was the pull of points without a counterpart (docs/results/registration.md). The
 // bounds are the measured errors plus a margin; the agreement of our
 // non-robust GICP with PCL's (same cost) is checked tightly.
 TEST(RegistrationPlugins, SmallGicpPairMatchesGroundTruth) {

@@ -1,7 +1,7 @@
 // End to end through the host: the simulator's `tiny` recording (default
 // noise) -> lidar/preprocess -> slam/pose_graph (registration/gicp) ->
 // eval/trajectory against the true platform trajectory, aligned only by the
-// fixed first pose. Measured: 1.4 cm RMS ATE, 0.10 deg, 14 s (plugins/lidar/README.md).
+// fixed first pose. Measured: 1.4 cm RMS ATE, 0.10 deg, 14 s (docs/results/slam-history.md).
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -220,7 +220,7 @@ start_node: 1
 // keyframes, 74 m, two revisits) through configs/gt/lidar_keyframes.yaml
 // (source/pcd_keyframes -> slam/pose_graph with the constant-velocity prior ->
 // eval/trajectory, SE(3)-aligned against the BALM reference poses), GICP
-// voxel 0.3 m here for time (the config's 0.2 m: plugins/lidar/README.md).
+// voxel 0.3 m here for time (the config's 0.2 m: docs/results/slam-history.md).
 TEST(LidarPipeline, BalmIndoorKeyframesAgreeWithReferenceLoopsAtRevisitsCrispMap) {
   LOCFORGE_SHARED_PATH_OR_SKIP(data, "data/lidar/balm_indoor");
   const fs::path bin = LOCFORGE_BINARY_DIR;

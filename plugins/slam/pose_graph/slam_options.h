@@ -27,7 +27,7 @@ struct SlamOptions {
   // registration's own stop (GICP: 1e-4 rad) there is wasted work. These
   // key=value overrides of registration's parameters apply to them (keys the
   // back-end does not declare are skipped): 20x / 10x looser for GICP, half
-  // the iterations of the LiDAR half (plugins/slam/README.md, throughput).
+  // the iterations of the LiDAR half (docs/results/slam.md, throughput).
   std::vector<std::string> coarse_params = {"rotation_epsilon=0.002", "translation_epsilon=0.001"};
   // Registration edges' information: "registration" (the back-end's 6x6
   // Hessian moved into the edge's coordinates and rescaled so its strongest

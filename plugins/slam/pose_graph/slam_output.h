@@ -1,4 +1,4 @@
-// What slam/pose_graph writes (plugins/lidar/README.md): trajectories of the
+// What slam/pose_graph writes (plugins/slam/README.md): trajectories of the
 // rig and the cameras, the map, the graph, the top-down figure, joins.csv and
 // slam.json.
 #ifndef LOCFORGE_PLUGINS_LIDAR_SLAM_OUTPUT_H_

@@ -16,7 +16,7 @@ their numpy forward passes (the expected outputs the C++ plugin must match).
       coordinates), PREFIX.scores (N) and PREFIX.desc (N x C); prints N.
 
 Needs python3-onnx (Debian) and python3-numpy. The models follow the
-contracts of plugins/learned/README.md:
+contracts of plugins/common/onnx/README.md:
   netvlad: conv trunk -> descriptors L2-normalised over channels -> NetVLAD
            layer (1x1 conv soft-assignment + softmax over clusters, residual
            aggregation sum_n a_kn (x_n - c_k) as a MatMul, intra-normalisation,

@@ -81,7 +81,7 @@ struct BAProblem {
 // The options of the bundle adjuster. Their defaults are those of the stage
 // gt/spline_ba, which declares each of them in place (ParamSchema nested
 // members, rotations in degrees there); the reasons behind the values and
-// their measured effects are in plugins/gt/README.md.
+// their measured effects are in docs/results/ground-truth-history.md.
 struct SplineBAOptions {
   // Spacing of the spline knots (control poses), seconds. Several images per
   // knot: a wheeled platform moves smoothly, the images' visual noise does not.
