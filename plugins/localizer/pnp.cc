@@ -26,7 +26,7 @@ struct PnPOptions {
   int min_inliers = 10;        // Fewer inliers: the query fails.
   double min_inlier_ratio = 0.0;  // Lower inlier ratio: the query fails.
   double cauchy_scale_px = 0.5;   // Cauchy loss scale of the refinement (the final one's floor)
-  double cauchy_noise_factor = 2.385;  // final refinement's scale >= this x the inliers' noise sigma (0: off)
+  double cauchy_noise_factor = 0;  // > 0: final refinement's scale >= this x the inliers' noise sigma
   int64_t seed = 0;               // RANSAC seed (deterministic).
   bool rig_queries = false;       // Query cameras of one rig at one timestamp share a pose.
   std::string keypoints_type;     // Query keypoints type; "" = the only one.
@@ -98,7 +98,7 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
              {"matches", "kapture.matches", "query-to-map matches"}},
             {{"trajectories", "kapture.trajectories",
               "estimated query poses (+ failures.txt, localization_stats.csv)"}}};
-    meta.version = "1.4.0";  // 1.4.0: final refinement's scale from the inliers' noise, always kept
+    meta.version = "1.4.0";  // 1.4.0: the final refinement is kept (1.3.0 kept it only if no inlier was lost)
     return meta;
   }
   using PerItemStage::PerItemStage;

@@ -441,12 +441,12 @@ AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& cs,
   // refinement lowers the robust cost from RANSAC's pose, so it is kept even
   // when a few inliers move past the threshold: counting them is the coarser
   // criterion, and refusing the refined pose would keep a less accurate one.
-  Pose refined = best_pose;
   RefineOptions final_refine = options.refine;
   if (final_refine.noise_factor > 0)
     final_refine.cauchy_scale_px = std::max(
         final_refine.cauchy_scale_px,
         final_refine.noise_factor * InlierNoiseSigmaPx(cs, cameras, best_pose, best_inliers));
+  Pose refined = best_pose;
   if (RefinePose(Subset(cs, best_inliers), cameras, final_refine, &refined)) {
     best_pose = refined;
     best_inliers = InliersOf(cs, cameras, refined, th2, nullptr);

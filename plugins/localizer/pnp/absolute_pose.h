@@ -50,8 +50,8 @@ struct RefineOptions {
   double cauchy_scale_px = 1.0;  // Cauchy loss scale, pixels
   // > 0: the final refinement's scale is at least this many times the inliers'
   // measured noise (per-axis sigma), so the inliers of a noisier image are not
-  // down-weighted like outliers; 2.385 is the Cauchy loss's 95 %-efficiency
-  // constant for Gaussian noise (Holland & Welsch 1977). 0: cauchy_scale_px alone.
+  // down-weighted like outliers (2.385: the Cauchy loss's 95 %-efficiency
+  // constant for Gaussian noise). 0: cauchy_scale_px alone.
   double noise_factor = 0.0;
   int max_iterations = 50;
   bool Check(std::string* why) const;
