@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <iostream>
 #include <random>
 
 #include "locforge/camera.h"
@@ -131,6 +133,32 @@ TEST(LoRansac, FindsPoseWithHalfOutliers) {
     const AbsolutePoseResult again = EstimateAbsolutePose(s.cs, s.cameras, options);
     EXPECT_EQ(again.rig_from_world.Matrix(), r.rig_from_world.Matrix());
   }
+}
+
+// With 1.5 px Gaussian noise and no outliers, a Cauchy scale of 0.5 px treats
+// most inliers as half outliers; scaling it to the measured noise (2.385
+// sigma) is closer to least squares, the efficient estimator here: over 20
+// scenes its mean position error is lower, and the measured sigma is right.
+TEST(LoRansac, NoiseScaledRefinementIsMoreAccurateOnGaussianNoise) {
+  std::mt19937 rng(11);
+  double fixed_error = 0, scaled_error = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    Scene s = MakeScene(rng, 300, 1.5, 0.0);
+    RansacOptions options;
+    options.max_error_px = 6;
+    options.refine.cauchy_scale_px = 0.5;
+    const AbsolutePoseResult fixed = EstimateAbsolutePose(s.cs, s.cameras, options);
+    options.refine.noise_factor = 2.385;
+    const AbsolutePoseResult scaled = EstimateAbsolutePose(s.cs, s.cameras, options);
+    ASSERT_TRUE(fixed.success && scaled.success) << fixed.failure << scaled.failure;
+    fixed_error += CenterError(fixed.rig_from_world, s.truth);
+    scaled_error += CenterError(scaled.rig_from_world, s.truth);
+    // Mean inlier error of 2D Gaussian noise: sigma sqrt(pi / 2) = 1.88 px.
+    EXPECT_NEAR(scaled.mean_inlier_error_px, 1.5 * std::sqrt(M_PI / 2), 0.25) << trial;
+  }
+  std::cout << "mean position error over 20 scenes: scale 0.5 px " << fixed_error / 20
+            << " m, noise-scaled " << scaled_error / 20 << " m\n";
+  EXPECT_LT(scaled_error, 0.95 * fixed_error);
 }
 
 TEST(LoRansac, RigOfTwoCamerasSharesOnePose) {
