@@ -60,6 +60,11 @@ TEST_F(Runner, FailedItemFailsTheRunAndARerunProcessesOnlyIt) {
   EXPECT_EQ(Processed(first).size(), 19u);  // the others went on
   EXPECT_FALSE(fs::exists(out / "summary.txt"));
   EXPECT_EQ(lftest::Lines(lftest::Slurp(out / ".items-done.0-of-1")).size(), 19u);
+  // The failed item is listed with its reason, one line after the header.
+  const auto failures = lftest::Lines(lftest::Slurp(out / "failures.txt"));
+  ASSERT_EQ(failures.size(), 2u);
+  EXPECT_EQ(failures[0], "# item, reason");
+  EXPECT_EQ(failures[1], "item_007, planned failure of item_007");
 
   fs::remove(dir_ / "fail-item_007");
   StageRun second = Items(out, 20, 4);
@@ -70,6 +75,7 @@ TEST_F(Runner, FailedItemFailsTheRunAndARerunProcessesOnlyIt) {
   EXPECT_EQ(result.items_processed, 1u);
   EXPECT_EQ(Processed(second), std::set<std::string>{"item_007"});
   EXPECT_EQ(lftest::Lines(lftest::Slurp(out / "summary.txt")).size(), 20u);
+  EXPECT_FALSE(fs::exists(out / "failures.txt"));  // every item done: nothing left to list
 }
 
 TEST_F(Runner, TornJournalLineIsIgnoredAndRepaired) {
