@@ -271,6 +271,8 @@ TEST_F(Runner, ImageStatsNameTheRecordOfAMissingOrBrokenImage) {
   const fs::path dataset = lftest::MakeSyntheticDataset(registry_, dir_, 4);
   fs::remove(dataset / "sensors/records_data/cam0/00002.png");
   std::ofstream(dataset / "sensors/records_data/cam0/00003.png") << "not a png";
+  const fs::path cut = dataset / "sensors/records_data/cam0/00001.png";
+  fs::resize_file(cut, fs::file_size(cut) / 2);
   StageRun stats{&registry_, "example/image_stats", {}, {}, {}};
   stats.options.output_dir = dir_ / "stats";
   stats.options.inputs = {{"images", "kapture.dataset", dataset}};
@@ -279,11 +281,15 @@ TEST_F(Runner, ImageStatsNameTheRecordOfAMissingOrBrokenImage) {
     FAIL() << "accepted";
   } catch (const locforge::InputError& e) {
     const std::string m = e.what();
-    EXPECT_NE(m.find("2 of 4 items failed"), std::string::npos) << m;
+    EXPECT_NE(m.find("3 of 4 items failed"), std::string::npos) << m;
     EXPECT_NE(m.find("records_camera.txt:5: field 'image_path': image 'cam0/00002.png' not found"),
               std::string::npos) << m;
-    EXPECT_NE(m.find("records_camera.txt:6: field 'image_path': cannot decode image 'cam0/00003.png'"),
+    EXPECT_NE(m.find("records_camera.txt:6: field 'image_path': unusable image 'cam0/00003.png'"),
               std::string::npos) << m;
+    EXPECT_NE(m.find("not a PNG (no PNG signature)"), std::string::npos) << m;
+    EXPECT_NE(m.find("records_camera.txt:4: field 'image_path': unusable image 'cam0/00001.png'"),
+              std::string::npos) << m;
+    EXPECT_NE(m.find("truncated PNG"), std::string::npos) << m;
   }
   EXPECT_FALSE(fs::exists(dir_ / "stats" / "stats.csv"));
 }
