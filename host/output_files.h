@@ -9,9 +9,10 @@
 // checked too. It stays a file of its own so that reading a manifest remains
 // cheap on nodes of 10^5 files.
 //
-// Cost: every run checks each served folder by existence, kind and size
-// (a stat per file, the list hashed); the contents are hashed only by
-// `locforge status W --verify`, which reads every byte of the workspace.
+// Cost: publishing reads every output once to hash it; every run checks
+// each served folder by existence, kind and size (a stat per file, the list
+// hashed); the contents are hashed again only by `locforge status W
+// --verify`, which reads every byte of the workspace.
 #ifndef LOCFORGE_HOST_OUTPUT_FILES_H_
 #define LOCFORGE_HOST_OUTPUT_FILES_H_
 
