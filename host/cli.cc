@@ -23,7 +23,8 @@ Commands:
   kapture ...                   Kapture dataset tools
   colmap ...                    COLMAP model tools
   collect W NODE/FILE           One table of a node's result over a matrix run's variants
-  status W                      Per-node state and cost (a Slurm submission's jobs)
+  status W [--verify]           Per-node state and cost (a Slurm submission's jobs);
+                                --verify hashes every cached output file
   report W [-o FILE]            One HTML report of a workspace's last run
   help [COMMAND]                This help, or a command's
 

@@ -550,6 +550,77 @@ TEST_F(Cli, ShardsThenFinalRunComplete) {
   EXPECT_EQ(Run("run demo.yaml --workspace ws --shard 0/2 --force").rc, 2);
 }
 
+// Every output file of a node folder (bookkeeping files left out): path -> bytes.
+std::map<std::string, std::string> Contents(const fs::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file() && e.path().filename().string()[0] != '.')
+      out[e.path().lexically_relative(dir).generic_string()] = ReadAll(e.path());
+  return out;
+}
+
+TEST_F(Cli, DamagedCacheFolderIsFoundReportedAndComputedAgain) {
+  Write("demo.yaml", kDemo);
+  Result r = Run("run demo.yaml --workspace ws");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const fs::path images = fs::canonical(dir_ / "ws/nodes/images");
+  const fs::path stats = fs::canonical(dir_ / "ws/nodes/stats");
+  const auto images_before = Contents(images), stats_before = Contents(stats);
+  EXPECT_TRUE(std::regex_search(ReadAll(images / ".locforge-complete"),
+                                std::regex("\"files_sha256\": \"[0-9a-f]{64}\"")));
+  r = Run("status ws --verify");
+  EXPECT_EQ(r.rc, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("verified 2 node folders"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0 damaged, 0 unverifiable"), std::string::npos) << r.out;
+
+  // One image of the upstream node deleted: --verify names the folder and file.
+  std::string victim;
+  for (const auto& [path, bytes] : images_before)
+    if (victim.empty() && path.find("records_data/") != std::string::npos) victim = path;
+  ASSERT_FALSE(victim.empty());
+  fs::remove(images / victim);
+  r = Run("status ws --verify");
+  EXPECT_EQ(r.rc, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("damaged cache/" + images.filename().string() + " (node images):"),
+            std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  " + victim + ": missing"), std::string::npos) << r.out;
+
+  // A run warns, naming the node and the file, and computes the node again
+  // to the same bytes; its downstream node stays cached, unchanged.
+  r = Run("run demo.yaml --workspace ws");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.err.find("images: warning: cached folder "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(images.filename().string() + " is damaged (" + victim +
+                       ": missing); computing the node again"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(Status(r.out, "images"), "ran") << r.out;
+  EXPECT_EQ(Status(r.out, "stats"), "cached") << r.out;
+  EXPECT_EQ(Contents(images), images_before);
+  EXPECT_EQ(Contents(stats), stats_before);
+  EXPECT_EQ(Run("status ws --verify").rc, 0);
+
+  // The same size, another content: only hashing (--verify) finds it.
+  std::string csv = ReadAll(stats / "stats.csv");
+  csv[csv.size() / 2] = csv[csv.size() / 2] == '7' ? '8' : '7';
+  std::ofstream(stats / "stats.csv", std::ios::binary | std::ios::trunc) << csv;
+  r = Run("status ws --verify");
+  EXPECT_EQ(r.rc, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("  stats.csv: content changed"), std::string::npos) << r.out;
+
+  // A manifest written before file lists: listed as unverifiable, still served.
+  const std::string manifest = ReadAll(images / ".locforge-complete");
+  const std::string old = std::regex_replace(
+      manifest, std::regex(",\n  \"file_count\": [0-9]+,\n  \"files_sha256\": \"[0-9a-f]*\""), "");
+  ASSERT_NE(old, manifest);
+  std::ofstream(images / ".locforge-complete", std::ios::trunc) << old;
+  r = Run("status ws --verify");
+  EXPECT_NE(r.out.find("unverifiable cache/" + images.filename().string() + " (node images)"),
+            std::string::npos) << r.out;
+  r = Run("run demo.yaml --workspace ws");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_EQ(Status(r.out, "images"), "cached") << r.out;
+}
+
 TEST_F(Cli, ParallelShardsComputeSharedNodesOnce) {
   Write("demo.yaml", kDemo);
   const std::string bin =

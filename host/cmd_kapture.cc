@@ -12,7 +12,7 @@ namespace locforge::host {
 namespace {
 
 const char kKaptureHelp[] =
-    "Usage: locforge kapture info DIR [--strict]\n"
+    "Usage: locforge kapture info DIR [--strict] [--check-images]\n"
     "       locforge kapture copy SRC DST [--overwrite] [--no-records-data] [--unpack]\n"
     "\n"
     "Tools for kapture 1.1 datasets (sensors/, reconstruction/).\n"
@@ -25,6 +25,9 @@ const char kKaptureHelp[] =
     "               of unknown devices, rig sensors absent from sensors.txt, camera\n"
     "               records without a feature file).\n"
     "      --strict         exit 1 when problems are found\n"
+    "      --check-images   also decode every camera record's image whole and list\n"
+    "                       the damaged ones (truncated or corrupt JPEG, broken PNG)\n"
+    "                       with the reason; exit 1 when there is one\n"
     "\n"
     "  copy SRC DST Reads everything under SRC and writes it to DST: text files\n"
     "               re-emitted in the kapture toolbox's format, feature and matches\n"
@@ -56,12 +59,27 @@ int CheckKaptureDir(const std::string& sub, const fs::path& dir) {
   return 0;
 }
 
+// Checks the image of every camera record; prints the count and each damaged
+// one (file and reason). Returns how many are damaged.
+size_t CheckImages(const fs::path& dir) {
+  const kapture::Kapture k(dir);
+  int64_t checked = 0;
+  const auto damaged = kapture::FindDamagedImages(k, &checked);
+  std::cout << "images checked: " << checked << ", damaged: " << damaged.size() << "\n";
+  for (const auto& d : damaged)
+    std::cout << "  damaged image " << (dir / kapture::layout::kRecordsData / d.path).string() << ": "
+              << d.reason << "\n";
+  return damaged.size();
+}
+
 int Info(const Args& args) {
   std::vector<std::string> positional;
-  bool strict = false;
+  bool strict = false, check_images = false;
   for (const std::string& a : args) {
     if (a == "--strict") {
       strict = true;
+    } else if (a == "--check-images") {
+      check_images = true;
     } else if (a.rfind("--", 0) == 0) {
       return UsageError("kapture", "unknown option '" + a + "' for info");
     } else {
@@ -73,7 +91,8 @@ int Info(const Args& args) {
   if (int rc = CheckKaptureDir("info", dir)) return rc;
   const kapture::KaptureSummary summary = kapture::InspectKapture(dir);
   std::cout << kapture::FormatSummary(summary);
-  return strict && !summary.problems.empty() ? 1 : 0;
+  const size_t damaged = check_images ? CheckImages(dir) : 0;
+  return damaged > 0 || (strict && !summary.problems.empty()) ? 1 : 0;
 }
 
 int Copy(const Args& args) {

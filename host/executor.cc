@@ -10,6 +10,7 @@
 #include <set>
 
 #include "locforge/error.h"
+#include "output_files.h"
 #include "usage.h"
 
 namespace locforge::host {
@@ -54,7 +55,7 @@ ExecResult Executor::Run(const std::vector<ResolvedGraph>& variants) {
       if (only && (node.name != options_.only_node || only_found)) {
         // Another job's node: an input when complete, never computed here.
         const fs::path dir = workspace_.NodeDir(node.name, keys[node.name]);
-        if (Workspace::IsComplete(dir)) {
+        if (ServableFromCache(workspace_, Label(graph.variant, node.name), dir, reporter_)) {
           folders_[graph.variant + "/" + node.name] = dir;
           workspace_.Link(graph.variant, node.name, dir);
         } else {
@@ -134,7 +135,7 @@ NodeReport Executor::RunNode(const ResolvedGraph& graph, const ResolvedNode& nod
   }
   const fs::path dir = workspace_.NodeDir(node.name, key);
   Done done;
-  if (!options_.force && Workspace::IsComplete(dir)) {
+  if (!options_.force && ServableFromCache(workspace_, label, dir, reporter_)) {
     done = {"cached", dir};
     report.items = ManifestItems(dir);
     report.output_bytes = OutputBytes(dir);
@@ -283,6 +284,7 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     }
     m.output_bytes = OutputBytes(partial);
     report->output_bytes = m.output_bytes;
+    RecordOutputFiles(partial, &m);
     Publish(partial, dir, Manifest(node, key, inputs, m));
     status = r.items_resumed > 0 ? "resumed" : "ran";
     reporter_.NodeFinished(label, status, r.items_total, report->seconds);

@@ -14,6 +14,7 @@
 #include "locforge/error.h"
 #include "locforge/fs.h"
 #include "locforge/params.h"
+#include "output_files.h"
 #include "process.h"
 
 namespace locforge::host {
@@ -336,7 +337,8 @@ Submission SubmitToSlurm(const Workspace& workspace, const std::vector<ResolvedG
         continue;
       }
       const fs::path dir = workspace.NodeDir(node.name, key);
-      if (Workspace::IsComplete(dir)) {
+      const std::string label = (graph.variant.empty() ? "" : graph.variant + "/") + node.name;
+      if (ServableFromCache(workspace, label, dir, reporter)) {
         job.job_id = "-";
         job_of_key[key] = "-";
         workspace.Link(graph.variant, node.name, dir);

@@ -200,7 +200,9 @@ std::string FormatManifest(const Manifest& m) {
        ",\n  \"seconds\": " + secs + ",\n  \"cpu_seconds\": " + cpu +
        ",\n  \"peak_rss_bytes\": " + std::to_string(m.peak_rss_bytes) +
        ",\n  \"output_bytes\": " + std::to_string(m.output_bytes) +
-       ",\n  \"shards\": " + std::to_string(m.shards) + "\n}\n";
+       ",\n  \"shards\": " + std::to_string(m.shards) +
+       ",\n  \"file_count\": " + std::to_string(m.file_count) +
+       ",\n  \"files_sha256\": " + JsonString(m.files_sha256) + "\n}\n";
   return j;
 }
 
@@ -229,6 +231,7 @@ Manifest ReadManifest(const fs::path& node_dir) {
   m.key = text("key");
   m.finished = text("finished");
   m.started = text("started");
+  m.files_sha256 = text("files_sha256");
   auto number = [&](const char* field, auto* out) {
     const YAML::Node n = root[field];
     if (!n) return;
@@ -244,6 +247,7 @@ Manifest ReadManifest(const fs::path& node_dir) {
   number("peak_rss_bytes", &m.peak_rss_bytes);
   number("output_bytes", &m.output_bytes);
   number("shards", &m.shards);
+  number("file_count", &m.file_count);
   if (const YAML::Node params = root["params"]; params && params.IsMap())
     for (auto it = params.begin(); it != params.end(); ++it)
       m.params[it->first.Scalar()] = it->second.IsScalar() ? it->second.Scalar() : "";
@@ -255,7 +259,7 @@ Manifest ReadManifest(const fs::path& node_dir) {
 }
 
 bool IsProtocolFile(const std::string& name) {
-  return name == kCompleteMarker || name.rfind(kJournalPrefix, 0) == 0 ||
+  return name == kCompleteMarker || name == kFileList || name.rfind(kJournalPrefix, 0) == 0 ||
          name.rfind(kShardRecordPrefix, 0) == 0;
 }
 
@@ -313,6 +317,15 @@ std::vector<ShardRecord> ReadShardRecords(const fs::path& dir, int count) {
     }
   }
   return out;
+}
+
+void DiscardNodeFolder(const fs::path& node_dir) {
+  fs::path aside = node_dir;
+  aside += ".damaged-" + std::to_string(::getpid());
+  std::error_code ec;
+  fs::remove_all(aside, ec);
+  fs::rename(node_dir, aside, ec);  // another process may have moved it first
+  fs::remove_all(aside, ec);
 }
 
 void Publish(const fs::path& partial_dir, const fs::path& node_dir, const std::string& manifest) {

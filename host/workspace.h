@@ -5,6 +5,8 @@
 //                                      kept so a later run (or shard) resumes
 //   cache/<node>-<key16>.partial-<pid> a whole-stage run in progress, private to
 //                                      its process (stale once the node lock is held)
+//   cache/<node>-<key16>.damaged-<pid> a complete folder found damaged, being
+//                                      removed (output_files.h)
 //   locks/<node>-<key16>.lock          held while a node is computed (exclusive;
 //                                      shared by the shards of a sharded run)
 //   locks/<node>-<key16>.shard-I-of-N.lock, .publish.lock
@@ -15,8 +17,8 @@
 // A shard of a per-item node that finished its items leaves a record
 // (`.shard-done.I-of-N`, kShardRecordPrefix) in the partial folder: its cost,
 // summed into the manifest, and what a re-submission skips.
-// A finished node is published by writing its manifest into the partial
-// folder, then renaming that folder to the node's.
+// A finished node is published by writing its file list (kFileList) and its
+// manifest into the partial folder, then renaming that folder to the node's.
 #ifndef LOCFORGE_HOST_WORKSPACE_H_
 #define LOCFORGE_HOST_WORKSPACE_H_
 
@@ -35,6 +37,7 @@ namespace fs = std::filesystem;
 inline constexpr const char* kCompleteMarker = ".locforge-complete";
 inline constexpr const char* kShardRecordPrefix = ".shard-done.";
 inline constexpr const char* kJournalPrefix = ".items-done.";  // the runtime's (registry.h)
+inline constexpr const char* kFileList = ".locforge-files";  // output_files.h
 
 // A node folder's bookkeeping files (manifest, journals, shard records), not
 // the stage's outputs.
@@ -108,6 +111,10 @@ struct Manifest {
   uint64_t output_bytes = 0;
   int shards = 1;               // processes that computed the items
   std::string started;          // UTC time the (first shard's) run started
+  // SHA-256 of the folder's kFileList and its file count (output_files.h).
+  // Manifests of older runs lack them: "" (the folder cannot be verified).
+  std::string files_sha256;
+  uint64_t file_count = 0;
 };
 std::string FormatManifest(const Manifest& manifest);  // JSON
 // Reads the manifest of a complete node folder; throws InputError naming the
@@ -127,6 +134,11 @@ fs::path ShardRecordPath(const fs::path& dir, int index, int count);
 void WriteShardRecord(const fs::path& dir, const ShardRecord& record);  // atomic
 // The records of `dir` for shard count `count` (unreadable ones skipped).
 std::vector<ShardRecord> ReadShardRecords(const fs::path& dir, int count);
+
+// Moves a complete node folder found damaged out of the cache (renamed
+// aside, then deleted), so that it is computed again. Call with the node's
+// lock held.
+void DiscardNodeFolder(const fs::path& node_dir);
 
 // Writes `manifest` as the completion marker into `partial_dir`, then
 // renames it to `node_dir` (an existing `node_dir`, e.g. under --force, is

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "image_content.h"
+#include "image_read.h"
 #include "locforge/fs.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
@@ -104,7 +105,7 @@ class ContentTablesStage : public Stage<ContentTablesOptions> {
                        {"reports", "report", "eval/localization reports (per_query.csv), one per method", LF_PORT_MULTIPLE},
                        {"images", "kapture.dataset", "the query images, for the best/worst figure", LF_PORT_OPTIONAL}},
                       {{"tables", "report", "table5.{md,csv,tex}, table6.{md,csv,tex}, best_worst_<method>.png"}}};
-    meta.version = "1.0.0";
+    meta.version = "1.1.0";  // 1.1.0: a damaged image fails
     return meta;
   }
   using Stage::Stage;
@@ -146,9 +147,7 @@ class ContentTablesStage : public Stage<ContentTablesOptions> {
       for (size_t i = 0; i < n; ++i)
         for (bool is_best : {true, false}) {
           const auto& e = is_best ? ranked[i] : ranked[ranked.size() - 1 - i];
-          const fs::path file = images.ExistingRecordDataPath(e.image, "sensors/records_camera.txt");
-          const cv::Mat image = cv::imread(file.string(), cv::IMREAD_COLOR);
-          if (image.empty()) throw InputError(file.string(), 0, "image", "cannot be decoded as an image");
+          const cv::Mat image = image_io::ReadCameraImage(images.root(), e.image, cv::IMREAD_COLOR);
           (is_best ? best : worst).push_back(Thumbnail(image, o.thumbnail_width, is_best, e, *by_image.at(e.image)));
         }
       cv::Mat figure;

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "image_content.h"
+#include "image_read.h"
 #include "locforge/fs.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
@@ -55,7 +56,7 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
                         LF_PORT_OPTIONAL}},
                       {{"content", "report", "content.csv (image, device_id, low_frequency_score, low_frequency, "
                                              "crowdedness_percent, crowded), content.md, crowdedness_source.txt"}}};
-    meta.version = "1.1.1";
+    meta.version = "1.2.0";  // 1.2.0: a damaged image fails its item
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -63,10 +64,7 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
   std::vector<std::string> ListItems(RunContext& ctx) override { return kp::Kapture(ctx.Input("images")).CameraImages(); }
 
   void ProcessItem(RunContext& ctx, const std::string& image) override {
-    const kp::Kapture dataset(ctx.Input("images"));
-    const fs::path file = dataset.ExistingRecordDataPath(image, "sensors/records_camera.txt");
-    const cv::Mat gray = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
-    if (gray.empty()) throw InputError(file.string(), 0, "image", "cannot be decoded as an image");
+    const cv::Mat gray = image_io::ReadCameraImage(ctx.Input("images"), image, cv::IMREAD_GRAYSCALE);
     LowFrequencyOptions lf;
     lf.cutoff_cycles_per_width = options().cutoff_cycles_per_width;
     std::ostringstream line;

@@ -47,7 +47,7 @@ class PersonSegmentationStage : public PerItemStage<PersonSegmentationOptions> {
                         "to it, e.g. validation/...)", LF_PORT_OPTIONAL}},
                       {{"masks", "person.masks",
                         "masks/<image path, .png> (255 on people), segmentation.{csv,md}"}}};
-    meta.version = "1.0.0";
+    meta.version = "1.1.0";  // 1.1.0: a damaged image fails its item
     return meta;
   }
   using PerItemStage::PerItemStage;

@@ -11,6 +11,7 @@
 
 #include "depth_projection.h"
 #include "evaluation.h"
+#include "image_read.h"
 #include "locforge/fs.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
@@ -58,7 +59,7 @@ class DepthEvalStage : public Stage<DepthEvalOptions> {
                         "a simulator recording instead of the reference and masks parameters: its truth/depth/<split> "
                         "and truth/masks/<split>", LF_PORT_OPTIONAL}},
                       {{"report", "report", "depth.{md,csv}"}}};
-    meta.version = "1.0.0";
+    meta.version = "1.1.0";  // 1.1.0: a damaged mask fails
     return meta;
   }
   using Stage::Stage;
@@ -102,10 +103,11 @@ class DepthEvalStage : public Stage<DepthEvalOptions> {
       all[""].Merge(one);
       if (!masks.empty()) {
         const fs::path mask_file = SafeJoin(masks, fs::path(r.path).replace_extension(".png").generic_string(), r.path);
-        const cv::Mat mask = cv::imread(mask_file.string(), cv::IMREAD_GRAYSCALE);
-        if (mask.empty() || mask.cols != w || mask.rows != h)
-          throw InputError(mask_file.string(), 0, "masks", "missing, unreadable or not " + std::to_string(w) + " x " +
-                                                               std::to_string(h));
+        std::string why;
+        const cv::Mat mask = image_io::TryReadImage(mask_file, cv::IMREAD_GRAYSCALE, &why);
+        if (mask.empty()) throw InputError(mask_file.string(), 0, "masks", "unusable mask: " + why);
+        if (mask.cols != w || mask.rows != h)
+          throw InputError(mask_file.string(), 0, "masks", "not " + std::to_string(w) + " x " + std::to_string(h));
         std::vector<uint8_t> keep(static_cast<size_t>(w) * h);
         for (int y = 0; y < h; ++y)
           for (int x = 0; x < w; ++x) keep[static_cast<size_t>(y) * w + x] = mask.at<uint8_t>(y, x) <= 127;

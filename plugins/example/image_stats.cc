@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "image_read.h"
 #include "locforge/fs.h"
 #include "example_stages.h"
 
@@ -125,10 +126,11 @@ void ImageStats::ProcessItem(RunContext& ctx, const std::string& item) {
   if (!fs::is_regular_file(path))
     throw InputError(records_file, record.line, "image_path",
                      "image '" + record.image_path + "' not found at " + path.string());
-  const cv::Mat image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+  std::string why;
+  const cv::Mat image = image_io::TryReadImage(path, cv::IMREAD_UNCHANGED, &why);
   if (image.empty())
     throw InputError(records_file, record.line, "image_path",
-                     "cannot decode image '" + record.image_path + "' at " + path.string());
+                     "unusable image '" + record.image_path + "' at " + path.string() + ": " + why);
   Stats stats;
   const int bins = options().bins;
   switch (image.depth()) {

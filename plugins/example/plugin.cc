@@ -4,7 +4,8 @@
 #include "example_stages.h"
 #include "locforge/plugin.h"
 
-LOCFORGE_PLUGIN("examples", "1.0.0", "Example stages: synthetic images, image folder import, image statistics",
+// 1.1.0: a damaged image fails (image_list, image_stats).
+LOCFORGE_PLUGIN("examples", "1.1.0", "Example stages: synthetic images, image folder import, image statistics",
                 locforge::examples::SyntheticImages,
                 locforge::examples::ImageList,
                 locforge::examples::ImageStats)

@@ -31,7 +31,7 @@ class D2netStage : public PerImageStage<D2netOptions> {
             "D2-Net dense features, hard detection and descriptors per image (ONNX model, OpenCV dnn)",
             {kImagesPort},
             {{"features", "kapture.local_features", "keypoints (x, y, 1/scale) + descriptors"}}};
-    meta.version = "1.1.0";
+    meta.version = "1.2.0";  // 1.2.0: a damaged image fails its item
     return meta;
   }
   using PerImageStage::PerImageStage;

@@ -30,7 +30,7 @@ class R2d2Stage : public PerImageStage<R2d2Options> {
     StageMeta meta = {"features", "r2d2", "R2D2 keypoints and descriptors per image (ONNX model, OpenCV dnn)",
             {kImagesPort},
             {{"features", "kapture.local_features", "keypoints + descriptors of one type"}}};
-    meta.version = "1.1.0";
+    meta.version = "1.2.0";  // 1.2.0: a damaged image fails its item
     return meta;
   }
   using PerImageStage::PerImageStage;

@@ -3,6 +3,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "image_read.h"
 #include "locforge/fs.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
@@ -30,7 +31,7 @@ class SiftStage : public PerItemStage<SiftOptions> {
     StageMeta meta = {"features", "sift", "OpenCV SIFT keypoints and (Root)SIFT descriptors per image",
             {{"images", "kapture.dataset", "images to describe (records_camera.txt)"}},
             {{"features", "kapture.local_features", "keypoints + descriptors of one type"}}};
-    meta.version = "1.1.0";
+    meta.version = "1.2.0";  // 1.2.0: a damaged image fails its item
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -40,12 +41,7 @@ class SiftStage : public PerItemStage<SiftOptions> {
   }
 
   void ProcessItem(RunContext& ctx, const std::string& image) override {
-    const fs::path file =
-        k::Kapture(ctx.Input("images")).RecordDataPath(image, k::layout::RecordsFile("camera"));
-    const cv::Mat gray = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
-    if (gray.empty())
-      throw InputError(k::layout::RecordsFile("camera"), 0, "image_path",
-                       "cannot read image '" + image + "' at " + file.string());
+    const cv::Mat gray = image_io::ReadCameraImage(ctx.Input("images"), image, cv::IMREAD_GRAYSCALE);
     const SiftFeatures f = ExtractSift(gray, options());
     const k::LocalFeatureInfos infos = Infos(options());
     k::WriteImageLocalFeatures(

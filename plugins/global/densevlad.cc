@@ -42,7 +42,7 @@ class DenseVladStage : public PerItemStage<DenseVladOptions> {
             {{"images", "kapture.dataset", "images to describe"},
              {"vocabulary", "densevlad.vocabulary", "from global/densevlad_vocabulary"}},
             {{"features", "kapture.global_features", "one .gfeat per image"}}};
-    meta.version = "2.0.0";  // 2.0.0: vl_dsift-style dense SIFT (descriptors differ from 1.0.0)
+    meta.version = "2.1.0";  // 2.0.0: vl_dsift-style dense SIFT (descriptors differ from 1.0.0); 2.1.0: a damaged image fails
     return meta;
   }
   using PerItemStage::PerItemStage;

@@ -12,6 +12,7 @@
 #include <thread>
 #include <vector>
 
+#include "image_read.h"
 #include "locforge/error.h"
 #include "locforge/fs.h"
 #include "locforge/kapture/kapture.h"
@@ -23,13 +24,7 @@ namespace k = locforge::kapture;
 inline constexpr const char* kVocabularyFile = "densevlad_vocabulary.bin";
 
 inline cv::Mat ReadGray(const fs::path& dataset, const std::string& image) {
-  const fs::path file =
-      k::Kapture(dataset).RecordDataPath(image, k::layout::RecordsFile(k::kSensorCamera));
-  cv::Mat gray = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
-  if (gray.empty())
-    throw InputError(k::layout::RecordsFile("camera"), 0, "image_path",
-                     "cannot read image '" + image + "' at " + file.string());
-  return gray;
+  return image_io::ReadCameraImage(dataset, image, cv::IMREAD_GRAYSCALE);
 }
 
 

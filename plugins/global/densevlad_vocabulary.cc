@@ -74,7 +74,7 @@ class VocabularyStage : public Stage<VocabularyOptions> {
             "DenseVLAD visual vocabulary (k-means on dense RootSIFT) and PCA-whitening, learnt on the map",
             {{"images", "kapture.dataset", "map images to learn from (unused with 'file')", LF_PORT_OPTIONAL}},
             {{"vocabulary", "densevlad.vocabulary", "densevlad_vocabulary.bin"}}};
-    meta.version = "2.0.0";  // 2.0.0: vl_dsift-style dense SIFT (descriptors differ from 1.0.0)
+    meta.version = "2.1.0";  // 2.0.0: vl_dsift-style dense SIFT (descriptors differ from 1.0.0); 2.1.0: a damaged image fails
     return meta;
   }
   using Stage::Stage;

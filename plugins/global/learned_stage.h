@@ -40,7 +40,7 @@ class GlobalStage : public PerImageStage<ModelOptions<kModel>> {
     StageMeta meta = {"global", kNames[m], kDocs[m],
             {kImagesPort},
             {{"features", "kapture.global_features", "one .gfeat per image"}}};
-    meta.version = "1.1.0";
+    meta.version = "1.2.0";  // 1.2.0: a damaged image fails its item
     return meta;
   }
   using Base::Base;

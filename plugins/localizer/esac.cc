@@ -58,7 +58,7 @@ class EsacLocalizer : public RegressionStage<EsacOptions> {
                       "refinement of localizer/pnp; a query without enough inliers fails, never guessed",
                       {kQueryPort},
                       {kTrajectoriesPort}};
-    meta.version = "1.0.0";
+    meta.version = "1.1.0";  // 1.1.0: a damaged image fails its item
     return meta;
   }
   using RegressionStage::RegressionStage;

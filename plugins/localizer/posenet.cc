@@ -37,7 +37,7 @@ class PoseNetLocalizer : public RegressionStage<PoseNetOptions> {
                       "camera centre and rotation; non-finite outputs are failures, never guessed",
                       {kQueryPort},
                       {kTrajectoriesPort}};
-    meta.version = "1.0.0";
+    meta.version = "1.1.0";  // 1.1.0: a damaged image fails its item
     return meta;
   }
   using RegressionStage::RegressionStage;

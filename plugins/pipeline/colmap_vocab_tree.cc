@@ -53,7 +53,7 @@ class VocabTreeStage : public Stage<VocabTreeOptions> {
              {"query", "kapture.dataset", "query images (records_data)"}},
             {{"trajectories", "kapture.trajectories", "registered query poses (+ failures.txt)"}},
             LF_STAGE_NONDETERMINISTIC};
-    meta.version = "1.2.0";
+    meta.version = "1.3.0";  // 1.3.0: damaged images refused
     return meta;
   }
   using Stage::Stage;
@@ -70,11 +70,26 @@ namespace {
 
 namespace kp = locforge::kapture;
 
+// COLMAP decodes with FreeImage, which reads a damaged file as far as it can
+// without failing: such images are refused first, all of them named.
+void RefuseDamagedImages(const kp::Kapture& k) {
+  const auto damaged = kp::FindDamagedImages(k);
+  if (damaged.empty()) return;
+  constexpr size_t kShown = 5;
+  std::string listed;
+  for (size_t i = 0; i < damaged.size() && i < kShown; ++i)
+    listed += (i ? "; " : "") + damaged[i].path + ": " + damaged[i].reason;
+  if (damaged.size() > kShown) listed += "; and " + std::to_string(damaged.size() - kShown) + " more";
+  throw InputError(kp::layout::RecordsFile(kp::kSensorCamera), 0, "image_path",
+                   std::to_string(damaged.size()) + " damaged images: " + listed);
+}
+
 // Adds cameras (from sensors.txt, so intrinsics are the dataset's) and
 // images (no keypoints yet); feature_extractor then fills the features.
 std::vector<kp::DataRecord> AddDatasetImages(const kp::Kapture& k, Database* db,
                                              const fs::path& list_file) {
   auto records = k.ReadDataRecords(kp::kSensorCamera);
+  RefuseDamagedImages(k);
   std::map<std::string, colmap::CameraId> cameras;
   std::ostringstream list;
   db->BeginTransaction();

@@ -5,6 +5,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "image_read.h"
 #include "locforge/fs.h"
 #include "example_stages.h"
 
@@ -56,8 +57,7 @@ void ImageList::Run(RunContext& ctx) {
     if (rel.find_first_of(",\r\n") != std::string::npos)
       throw InputError(rel, 0, "", "image path contains a comma or line break, which kapture text files cannot hold");
     const fs::path source = SafeJoin(root, rel, o.root);  // refuses links leaving the root
-    const cv::Mat image = cv::imread(source.string(), cv::IMREAD_UNCHANGED);
-    if (image.empty()) throw InputError(source.string(), 0, "", "cannot decode image");
+    const cv::Mat image = image_io::ReadImage(source, cv::IMREAD_UNCHANGED);
     auto camera = std::find_if(cameras.begin(), cameras.end(), [&](const PinholeCamera& c) {
       return c.width == image.cols && c.height == image.rows;
     });

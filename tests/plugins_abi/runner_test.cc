@@ -60,6 +60,11 @@ TEST_F(Runner, FailedItemFailsTheRunAndARerunProcessesOnlyIt) {
   EXPECT_EQ(Processed(first).size(), 19u);  // the others went on
   EXPECT_FALSE(fs::exists(out / "summary.txt"));
   EXPECT_EQ(lftest::Lines(lftest::Slurp(out / ".items-done.0-of-1")).size(), 19u);
+  // The failed item is listed with its reason, one line after the header.
+  const auto failures = lftest::Lines(lftest::Slurp(out / "failures.txt"));
+  ASSERT_EQ(failures.size(), 2u);
+  EXPECT_EQ(failures[0], "# item, reason");
+  EXPECT_EQ(failures[1], "item_007, planned failure of item_007");
 
   fs::remove(dir_ / "fail-item_007");
   StageRun second = Items(out, 20, 4);
@@ -70,6 +75,7 @@ TEST_F(Runner, FailedItemFailsTheRunAndARerunProcessesOnlyIt) {
   EXPECT_EQ(result.items_processed, 1u);
   EXPECT_EQ(Processed(second), std::set<std::string>{"item_007"});
   EXPECT_EQ(lftest::Lines(lftest::Slurp(out / "summary.txt")).size(), 20u);
+  EXPECT_FALSE(fs::exists(out / "failures.txt"));  // every item done: nothing left to list
 }
 
 TEST_F(Runner, TornJournalLineIsIgnoredAndRepaired) {
@@ -265,6 +271,8 @@ TEST_F(Runner, ImageStatsNameTheRecordOfAMissingOrBrokenImage) {
   const fs::path dataset = lftest::MakeSyntheticDataset(registry_, dir_, 4);
   fs::remove(dataset / "sensors/records_data/cam0/00002.png");
   std::ofstream(dataset / "sensors/records_data/cam0/00003.png") << "not a png";
+  const fs::path cut = dataset / "sensors/records_data/cam0/00001.png";
+  fs::resize_file(cut, fs::file_size(cut) / 2);
   StageRun stats{&registry_, "example/image_stats", {}, {}, {}};
   stats.options.output_dir = dir_ / "stats";
   stats.options.inputs = {{"images", "kapture.dataset", dataset}};
@@ -273,11 +281,15 @@ TEST_F(Runner, ImageStatsNameTheRecordOfAMissingOrBrokenImage) {
     FAIL() << "accepted";
   } catch (const locforge::InputError& e) {
     const std::string m = e.what();
-    EXPECT_NE(m.find("2 of 4 items failed"), std::string::npos) << m;
+    EXPECT_NE(m.find("3 of 4 items failed"), std::string::npos) << m;
     EXPECT_NE(m.find("records_camera.txt:5: field 'image_path': image 'cam0/00002.png' not found"),
               std::string::npos) << m;
-    EXPECT_NE(m.find("records_camera.txt:6: field 'image_path': cannot decode image 'cam0/00003.png'"),
+    EXPECT_NE(m.find("records_camera.txt:6: field 'image_path': unusable image 'cam0/00003.png'"),
               std::string::npos) << m;
+    EXPECT_NE(m.find("not a PNG (no PNG signature)"), std::string::npos) << m;
+    EXPECT_NE(m.find("records_camera.txt:4: field 'image_path': unusable image 'cam0/00001.png'"),
+              std::string::npos) << m;
+    EXPECT_NE(m.find("truncated PNG"), std::string::npos) << m;
   }
   EXPECT_FALSE(fs::exists(dir_ / "stats" / "stats.csv"));
 }

@@ -162,7 +162,7 @@ std::map<std::string, JobLine> LatestSubmission(const fs::path& ws) {
 }
 
 bool IsProtocolFile(const std::string& name) {
-  return name == ".locforge-complete" || name.rfind(".items-done.", 0) == 0 ||
+  return name == ".locforge-complete" || name == ".locforge-files" || name.rfind(".items-done.", 0) == 0 ||
          name.rfind(".shard-done.", 0) == 0;
 }
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <map>
 
+#include "image_read.h"
 #include "locforge/fs.h"
 #include <stdexcept>
 
@@ -65,8 +66,9 @@ fs::path PersonMaskFile(const fs::path& folder, const std::string& image) {
 cv::Mat ReadPersonMask(const fs::path& folder, const std::string& image, cv::Size size, const std::string& field) {
   const fs::path file = PersonMaskFile(folder, image);
   if (!fs::exists(file)) throw InputError(file.string(), 0, field, "no person mask for image " + image);
-  const cv::Mat mask = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
-  if (mask.empty()) throw InputError(file.string(), 0, field, "cannot be decoded as an image");
+  std::string why;
+  const cv::Mat mask = image_io::TryReadImage(file, cv::IMREAD_GRAYSCALE, &why);
+  if (mask.empty()) throw InputError(file.string(), 0, field, "unusable mask: " + why);
   if (mask.size() != size)
     throw InputError(file.string(), 0, field, "mask size differs from the image's (" + image + ")");
   return mask;

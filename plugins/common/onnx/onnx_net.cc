@@ -6,6 +6,7 @@
 #include <map>
 #include <vector>
 
+#include "image_read.h"
 #include "locforge/error.h"
 #include "locforge/kapture/kapture.h"
 
@@ -53,11 +54,7 @@ double SecondsSince(const std::chrono::steady_clock::time_point& start) {
 }
 
 cv::Mat ReadRgb(const std::filesystem::path& dataset, const std::string& image) {
-  const fs::path file = kapture::Kapture(dataset).ExistingRecordDataPath(image, kapture::layout::RecordsFile("camera"));
-  const cv::Mat bgr = cv::imread(file.string(), cv::IMREAD_COLOR);
-  if (bgr.empty())
-    throw InputError(kapture::layout::RecordsFile("camera"), 0, "image_path",
-                     "cannot read image '" + image + "' at " + file.string());
+  const cv::Mat bgr = image_io::ReadCameraImage(dataset, image, cv::IMREAD_COLOR);
   cv::Mat rgb;
   cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
   return rgb;

@@ -1,9 +1,10 @@
-// SHA-256 (FIPS 180-4): the cache keys of graph nodes, checksums of outputs in tests.
+// SHA-256 (FIPS 180-4): the cache keys of graph nodes, checksums of outputs.
 #ifndef LOCFORGE_SHA256_H_
 #define LOCFORGE_SHA256_H_
 
 #include <array>
 #include <cstdint>
+#include <filesystem>
 #include <string>
 #include <string_view>
 
@@ -25,6 +26,9 @@ class Sha256 {
 };
 
 std::string Sha256Hex(std::string_view data);
+// SHA-256 hex of a file's content, read in blocks; throws Error naming the
+// file when it cannot be read.
+std::string Sha256FileHex(const std::filesystem::path& file);
 
 }  // namespace locforge
 

@@ -1,6 +1,10 @@
 #include "locforge/sha256.h"
 
 #include <cstring>
+#include <fstream>
+#include <vector>
+
+#include "locforge/error.h"
 
 namespace locforge {
 namespace {
@@ -86,6 +90,19 @@ std::string Sha256::HexDigest() {
 std::string Sha256Hex(std::string_view data) {
   Sha256 sha;
   sha.Update(data);
+  return sha.HexDigest();
+}
+
+std::string Sha256FileHex(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw Error("cannot open " + file.string());
+  Sha256 sha;
+  std::vector<char> block(1 << 20);
+  while (in) {
+    in.read(block.data(), static_cast<std::streamsize>(block.size()));
+    if (in.gcount() > 0) sha.Update({block.data(), static_cast<size_t>(in.gcount())});
+  }
+  if (in.bad()) throw Error("cannot read " + file.string());
   return sha.HexDigest();
 }
 

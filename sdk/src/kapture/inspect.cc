@@ -1,4 +1,5 @@
-// Inspecting a kapture dataset: InspectKapture, FormatSummary (kapture.h).
+// Inspecting a kapture dataset: InspectKapture, FormatSummary,
+// FindDamagedImages (kapture.h).
 #include "locforge/kapture/kapture.h"
 
 #include <algorithm>
@@ -7,6 +8,7 @@
 
 #include "files.h"
 #include "locforge/error.h"
+#include "locforge/image_check.h"
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/rigs.h"
 
@@ -210,6 +212,23 @@ std::string FormatSummary(const KaptureSummary& s) {
     line("problems: " + std::to_string(s.problems.size()) + " listed");
     for (const std::string& p : s.problems) line("  - " + p);
   }
+  return out;
+}
+
+std::vector<DamagedImage> FindDamagedImages(const Kapture& kapture, int64_t* checked) {
+  std::vector<DamagedImage> out;
+  int64_t count = 0;
+  const std::string records = layout::RecordsFile(kSensorCamera);
+  std::error_code ec;
+  if (fs::is_regular_file(kapture.root() / records, ec)) {
+    kapture.ForEachDataRecord(kSensorCamera, [&](const DataRecord& r) {
+      const fs::path file = kapture.RecordDataPath(r.path, records);
+      if (!fs::is_regular_file(file, ec)) return;
+      ++count;
+      if (std::string why = ImageFileDamage(file); !why.empty()) out.push_back({r.path, std::move(why)});
+    });
+  }
+  if (checked) *checked = count;
   return out;
 }
 

@@ -13,6 +13,7 @@
 
 #include "journal.h"
 #include "locforge/error.h"
+#include "locforge/fs.h"
 #include "locforge/runtime/registry.h"
 #include "plugin_call.h"
 
@@ -189,10 +190,48 @@ struct ItemFailure {
   CallStatus status;
 };
 
-[[noreturn]] void ThrowItemFailures(const std::string& stage_id, std::vector<ItemFailure> failures,
-                                    uint64_t attempted) {
-  std::sort(failures.begin(), failures.end(),
+// The failed items of a run: failures.txt in the journal folder
+// (failures.I-of-N.txt for shard I of N), "item, reason" per line.
+fs::path ItemFailuresPath(const fs::path& dir, int shard_index, int shard_count) {
+  if (shard_count <= 1) return dir / "failures.txt";
+  return dir / ("failures." + std::to_string(shard_index) + "-of-" + std::to_string(shard_count) +
+                ".txt");
+}
+
+// Failure lists of earlier attempts: moot once every item is done.
+void RemoveItemFailureLists(const fs::path& dir) {
+  std::error_code ec;
+  std::vector<fs::path> lists;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const bool shard_list = name.rfind("failures.", 0) == 0 &&
+                            name.find("-of-") != std::string::npos && name.size() > 4 &&
+                            name.compare(name.size() - 4, 4, ".txt") == 0;
+    if (name == "failures.txt" || shard_list) lists.push_back(it->path());
+  }
+  for (const fs::path& list : lists) fs::remove(list, ec);
+}
+
+// Sorts `failures` and lists them at `file` (best effort: the error thrown
+// next names the items anyway).
+void WriteItemFailures(const fs::path& file, std::vector<ItemFailure>* failures) {
+  std::sort(failures->begin(), failures->end(),
             [](const ItemFailure& a, const ItemFailure& b) { return a.item < b.item; });
+  std::string text = "# item, reason\n";
+  for (const ItemFailure& f : *failures) {
+    std::string reason = f.status.message;
+    std::replace(reason.begin(), reason.end(), '\n', ' ');
+    text += f.item + ", " + reason + "\n";
+  }
+  try {
+    WriteFileAtomic(file, text);
+  } catch (const std::exception&) {
+  }
+}
+
+[[noreturn]] void ThrowItemFailures(const std::string& stage_id, std::vector<ItemFailure> failures,
+                                    uint64_t attempted, const fs::path& list) {
+  WriteItemFailures(list, &failures);
   constexpr size_t kShown = 5;
   std::string message = stage_id + ": " + std::to_string(failures.size()) + " of " +
                         std::to_string(attempted) + " items failed";
@@ -201,7 +240,8 @@ struct ItemFailure {
                failures[i].status.message;
   if (failures.size() > kShown)
     message += "; and " + std::to_string(failures.size() - kShown) + " more";
-  message += " (finished items are journaled; rerun to retry only the failed ones)";
+  message += " (all listed in " + list.string() +
+             "; finished items are journaled; rerun to retry only the failed ones)";
   const bool all_input = std::all_of(failures.begin(), failures.end(), [](const ItemFailure& f) {
     return f.status.code == LF_BAD_INPUT;
   });
@@ -285,6 +325,8 @@ RunResult RunPerItem(const StageEntry& stage, void* instance, const RunOptions& 
   if (o.progress && !pending.empty()) o.progress(finished, result.items_total, "");
 
   if (!pending.empty()) {
+    std::error_code ec;
+    fs::remove(ItemFailuresPath(journal_dir, o.shard_index, o.shard_count), ec);  // a retry re-lists
     internal::JournalWriter journal(internal::JournalPath(journal_dir, o.shard_index, o.shard_count));
     auto work = [&] {
       const LfRunContext ctx = data->Make(item_threads);
@@ -332,13 +374,15 @@ RunResult RunPerItem(const StageEntry& stage, void* instance, const RunOptions& 
   }
   result.items_processed = processed.load();
   if (!failures.empty())
-    ThrowItemFailures(stage.id, std::move(failures), static_cast<uint64_t>(pending.size()));
+    ThrowItemFailures(stage.id, std::move(failures), static_cast<uint64_t>(pending.size()),
+                      ItemFailuresPath(journal_dir, o.shard_index, o.shard_count));
   if (cancelled) throw Cancelled();
 
   // Finalize once every item of every shard is journaled (by any shard count).
   done = internal::ReadJournals(journal_dir);
   for (const auto& item : all_items)
     if (!done.count(item)) return result;  // other shards still pending
+  RemoveItemFailureLists(journal_dir);
   const LfRunContext ctx = data->Make(o.threads);
   const CallStatus s =
       CallPlugin([&](LfError* err) { return stage.info->finalize(instance, &ctx, err); });

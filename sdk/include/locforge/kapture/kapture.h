@@ -302,6 +302,15 @@ struct KaptureSummary {
 KaptureSummary InspectKapture(const fs::path& root);
 std::string FormatSummary(const KaptureSummary& summary);
 
+// The camera records whose image file exists but does not decode whole
+// (locforge/image_check.h), in record order; missing files are Inspect's.
+struct DamagedImage {
+  std::string path;    // as in records_camera.txt
+  std::string reason;  // e.g. "truncated JPEG (libjpeg: Premature end of JPEG file)"
+};
+// `checked` (optional) receives the number of image files checked.
+std::vector<DamagedImage> FindDamagedImages(const Kapture& kapture, int64_t* checked = nullptr);
+
 }  // namespace locforge::kapture
 
 #endif  // LOCFORGE_KAPTURE_KAPTURE_H_
