@@ -135,6 +135,19 @@ def same_value(text, value, unit):
     return all(abs(x - e) <= tol * (1 + 1e-9) + 1e-12 * abs(e) for (x, tol), e in zip(shown, expected))
 
 
+# The unit a column's header names, as a reader expects to see it in its cells.
+HEADER_UNITS = [(re.compile(r"(_m|\(m\)|\(cm\)|\(mm\))$"), ("mm", "cm", "m")),
+                (re.compile(r"(_deg|\(deg\))$"), ("\u00b0",)),
+                (re.compile(r"^\(?[0-9.]+ ?m, ?[0-9.]+ ?deg\)?$"), ("%",))]
+
+
+def header_unit(header):
+    for pattern, units in HEADER_UNITS:
+        if pattern.search(header.strip().lower()):
+            return units
+    return None
+
+
 # A raw double on screen: a decimal number with more than 6 significant digits.
 RAW_NUMBER = re.compile(r"(?<![\w.])[-+]?(?:0\.0*[1-9]\d{6,}|[1-9]\d*\.\d+)(?![\w.])")
 
@@ -221,6 +234,10 @@ def check(args):
                     if value != row[c]:
                         failures.append("%s row %d column %s: data-value %r, file %r" %
                                         (t["source"], r, header[c], value, row[c]))
+                    units = header_unit(header[c])
+                    if units and number(row[c]) is not None and not text.strip().endswith(units):
+                        failures.append("%s row %d column %s: shows %r, without its unit (%s)" %
+                                        (t["source"], r, header[c], text, " or ".join(units)))
                     if not same_value(text, row[c], unit):
                         failures.append("%s row %d column %s: shows %r for %r (unit %r)" %
                                         (t["source"], r, header[c], text, row[c], unit))
