@@ -188,10 +188,12 @@ std::vector<std::string> DefaultExportNodes(const fs::path& workspace) {
   const RunRecord::Node& mapper = *mappers.front();
   std::vector<std::string> nodes;
   std::string map;
-  for (const auto& in : mapper.inputs) {
+  for (const auto& in : mapper.inputs)
     if (in.port == "map") map = in.node;
+  // The dataset first: it says what the others are of.
+  if (!map.empty()) nodes.push_back(map);
+  for (const auto& in : mapper.inputs)
     if (std::find(nodes.begin(), nodes.end(), in.node) == nodes.end()) nodes.push_back(in.node);
-  }
   for (const auto& n : run.nodes) {
     std::error_code ec;
     const bool global = fs::is_directory(NodeFolder(workspace, n.name) / "reconstruction/global_features", ec);
