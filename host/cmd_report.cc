@@ -137,7 +137,8 @@ class ReportBuilder {
   }
   // A CSV of a node as a table; "" when absent or unreadable (a warning).
   std::string CsvTable(const Node& n, const std::string& file, const std::string& caption,
-                       const std::vector<std::string>& columns = {});
+                       const std::vector<std::string>& columns = {},
+                       report::Unit fallback = report::Unit::kNone);
   std::string Figure(const Node& n, const std::string& file, const std::string& caption);
   void Warn(const std::string& text) { warnings_.push_back(text); }
 
@@ -158,10 +159,10 @@ class ReportBuilder {
 };
 
 std::string ReportBuilder::CsvTable(const Node& n, const std::string& file, const std::string& caption,
-                                    const std::vector<std::string>& columns) {
+                                    const std::vector<std::string>& columns, report::Unit fallback) {
   if (!Has(n, file)) return "";
   try {
-    return report::Table(report::ReadCsv(n.folder / file), Source(n, file), caption, columns);
+    return report::Table(report::ReadCsv(n.folder / file), Source(n, file), caption, columns, fallback);
   } catch (const std::exception& e) {
     Warn(std::string("unreadable table: ") + e.what());
     return "";
@@ -235,8 +236,8 @@ std::string ReportBuilder::Summary() {
     const YAML::Node j = LoadJson(n->folder / "summary.json");
     if (!j || !j.IsMap()) continue;
     auto num = [&](const char* k) { return j[k] ? Number(j[k].Scalar()) : std::nan(""); };
-    card("LiDAR ground truth", Fixed(num("ate_whole_m") * 100, 2) + " cm ATE",
-         {Escape(Fixed(num("rotation_whole_deg"), 3) + " deg rotation RMS, whole recording, one rigid alignment"),
+    card("LiDAR ground truth", Escape(report::FormatLength(num("ate_whole_m")) + " ATE"),
+         {Escape(report::FormatDegrees(num("rotation_whole_deg")) + " rotation RMS, whole recording, one rigid alignment"),
           Escape(Fixed(num("right"), 0) + " sequence(s) joined right, " + Fixed(num("wrong"), 0) + " wrong, " +
                  Fixed(num("refused"), 0) + " refused")});
     break;
@@ -246,8 +247,8 @@ std::string ReportBuilder::Summary() {
       const YAML::Node j = LoadJson(n->folder / "metrics.json");
       if (!j || !j["ape_translation_m"]) continue;
       card("Trajectory (" + n->record->name + ")",
-           Fixed(Number(j["ape_translation_m"]["rmse"].Scalar()) * 100, 2) + " cm ATE",
-           {Escape(Fixed(Number(j["ape_rotation_deg"]["rmse"].Scalar()), 3) + " deg rotation RMS")});
+           Escape(report::FormatLength(Number(j["ape_translation_m"]["rmse"].Scalar())) + " ATE"),
+           {Escape(report::FormatDegrees(Number(j["ape_rotation_deg"]["rmse"].Scalar())) + " rotation RMS")});
       break;
     }
   // The refined ground truth against the truth: the last row of eval/calibration.
@@ -257,11 +258,12 @@ std::string ReportBuilder::Summary() {
       if (c.rows.empty()) continue;
       const size_t last = c.rows.size() - 1;
       card("Refined ground truth (" + c.Cell(last, "estimate") + ")",
-           Fixed(Number(c.Cell(last, "position RMS (cm)")), 2) + " cm",
-           {Escape("camera positions RMS; rotations " + Fixed(Number(c.Cell(last, "rotation RMS (deg)")), 3) +
-                   " deg"),
-            Escape("focal error " + Fixed(Number(c.Cell(last, "focal error RMS (%)")), 3) + " % RMS, from " +
-                   Fixed(Number(c.Cell(0, "focal error RMS (%)")), 1) + " % (" + c.Cell(0, "estimate") + ")")});
+           Escape(report::FormatLength(Number(c.Cell(last, "position RMS (cm)")) * 1e-2)),
+           {Escape("camera positions RMS; rotations " +
+                   report::FormatDegrees(Number(c.Cell(last, "rotation RMS (deg)")))),
+            Escape("focal error " + report::FormatPercent(Number(c.Cell(last, "focal error RMS (%)"))) +
+                   " RMS, from " + report::FormatPercent(Number(c.Cell(0, "focal error RMS (%)"))) + " (" +
+                   c.Cell(0, "estimate") + ")")});
     } catch (const std::exception&) {
     }
     break;
@@ -280,9 +282,9 @@ std::string ReportBuilder::Summary() {
           const bool recall = h.find("m,") != std::string::npos && h.size() > 3 &&
                               h.compare(h.size() - 3, 3, "deg") == 0;
           if (!recall) continue;
-          const std::string value = c.rows[r][col];
-          if (big.empty()) big = Escape(value) + " %";
-          lines.push_back(Escape(h + ": " + value + " %"));
+          const std::string value = report::DisplayCell(c.rows[r][col], report::Unit::kRecall);
+          if (big.empty()) big = Escape(value);
+          lines.push_back(Escape(h + ": " + value));
         }
         if (!c.Cell(r, "queries").empty()) lines.push_back(Escape(c.Cell(r, "queries") + " queries"));
         card("Localization: " + c.Cell(r, "method"), big.empty() ? "-" : big, lines);
@@ -406,7 +408,8 @@ std::string ReportBuilder::Benchmark() {
   std::string h;
   for (const Node* n : OfStage("eval/table")) {
     shown_.insert(n);
-    h += CsvTable(*n, "table.csv", "Localization recall at (position, rotation) thresholds, like the paper's Table 3");
+    h += CsvTable(*n, "table.csv", "Localization recall (%) at (position, rotation) thresholds, like the paper's Table 3",
+                  {}, report::Unit::kRecall);
     h += Figure(*n, "curves.svg", "Recall against the position error threshold");
   }
   std::string curves;
@@ -442,7 +445,8 @@ std::string ReportBuilder::Others() {
     for (const char* file : {"report.md", "summary.md", "analysis.md"}) {
       if (!Has(n, file)) continue;
       h += "<h3>" + Escape(Label(n)) + " <span class=\"meta\">" + Escape(n.record->stage) + ", <code>" +
-           Escape(Source(n, file)) + "</code></span></h3>\n<pre>" + Escape(ReadFile(n.folder / file)) + "</pre>\n";
+           Escape(Source(n, file)) + "</code></span></h3>\n<pre>" + Escape(report::ShortenNumbers(ReadFile(n.folder / file))) +
+           "</pre>\n";
       for (const auto& entry : fs::directory_iterator(n.folder))
         if (entry.path().extension() == ".svg")
           h += Figure(n, entry.path().filename().string(), entry.path().stem().string());
@@ -543,12 +547,14 @@ std::string ReportBuilder::Build() {
     h += "<div class=\"ok\">No warnings: every node completed, every sequence joined, every query localized.</div>";
   } else {
     h += "<div class=\"warnings\"><b>Warnings (" + std::to_string(warnings_.size()) + ")</b><ul>";
-    for (const auto& w : warnings_) h += "<li>" + Escape(w) + "</li>";
+    for (const auto& w : warnings_) h += "<li>" + Escape(report::ShortenNumbers(w)) + "</li>";
     h += "</ul></div>";
   }
   h += "</section>\n" + dataset + gt + bench + others + Timing() + Graph();
   h += "<footer class=\"meta\"><p>Every table names the CSV file it shows (relative to the workspace) and keeps its "
-       "exact values; long numbers are shortened to 4 significant digits on screen.</p></footer>\n</main></body></html>\n";
+       "exact values (each cell's data-value); on screen, lengths are in mm below 1 cm, in cm below 1 m, else in m, "
+       "angles in degrees with 3 significant digits, recall in % with one decimal, other long numbers with 4 "
+       "significant digits.</p></footer>\n</main></body></html>\n";
   return h;
 }
 

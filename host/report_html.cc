@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <set>
 
 #include "locforge/error.h"
@@ -135,9 +136,19 @@ Csv ReadCsv(const fs::path& file) {
   return csv;
 }
 
-std::string DisplayNumber(const std::string& value) {
-  double v;
-  if (!ParseNumber(value, &v)) return value;
+namespace {
+
+bool EndsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// Significant digits of a number as written ("0.00207" has 3).
+int WrittenDigits(const std::string& value) {
   int digits = 0;
   bool leading = true;
   for (char c : value) {
@@ -147,15 +158,156 @@ std::string DisplayNumber(const std::string& value) {
     leading = false;
     ++digits;
   }
-  const bool integer = value.find_first_of(".eE") == std::string::npos;
-  if (integer || digits <= 5) return value;
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.4g", v);
+  return digits;
+}
+
+std::string Printf(const char* format, int decimals, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), format, decimals, v);
   return buf;
 }
 
+const char kDegreeSign[] = "\xc2\xb0";
+
+}  // namespace
+
+Unit UnitOf(const std::string& header) {
+  const std::string h = Lower(header);
+  static const std::regex threshold(R"(\s*\(?\s*[0-9.]+\s*m\s*,\s*[0-9.]+\s*deg\s*\)?\s*)");
+  if (h.find("recall") != std::string::npos || std::regex_match(h, threshold)) return Unit::kRecall;
+  auto unit = [&](const char* name) {
+    const std::string n = name;
+    return EndsWith(h, "(" + n + ")") || EndsWith(h, "_" + n) || EndsWith(h, " " + n);
+  };
+  if (unit("%") || EndsWith(h, "_percent") || EndsWith(h, "_pct")) return Unit::kPercent;
+  if (unit("mm")) return Unit::kMillimetres;
+  if (unit("cm")) return Unit::kCentimetres;
+  if (unit("m")) return Unit::kMetres;
+  if (unit("deg")) return Unit::kDegrees;
+  return Unit::kNone;
+}
+
+const char* UnitName(Unit unit) {
+  switch (unit) {
+    case Unit::kMetres: return "m";
+    case Unit::kCentimetres: return "cm";
+    case Unit::kMillimetres: return "mm";
+    case Unit::kDegrees: return "deg";
+    case Unit::kPercent: return "%";
+    case Unit::kRecall: return "recall";
+    case Unit::kNone: break;
+  }
+  return "";
+}
+
+std::string Significant(double value, int digits) {
+  if (!std::isfinite(value)) return value != value ? "nan" : value > 0 ? "inf" : "-inf";
+  if (value == 0) return "0";
+  const int exponent = static_cast<int>(std::floor(std::log10(std::fabs(value))));
+  int decimals = std::clamp(digits - 1 - exponent, 0, 15);
+  std::string text = Printf("%.*f", decimals, value);
+  // 9.996 to 3 digits rounds up to "10.00": one decimal fewer.
+  if (decimals > 0 && std::fabs(std::strtod(text.c_str(), nullptr)) >= std::pow(10.0, exponent + 1))
+    text = Printf("%.*f", decimals - 1, value);
+  return text;
+}
+
+std::string FormatLength(double metres) {
+  if (!std::isfinite(metres)) return Significant(metres, 3);
+  const double a = std::fabs(metres);
+  // Thresholds below 1 cm and 1 m so that a value rounding up shows in the next unit.
+  if (a < 0.009995) return Printf("%.*f", 2, metres * 1e3) + " mm";
+  if (a < 0.09995) return Printf("%.*f", 2, metres * 1e2) + " cm";
+  if (a < 0.9995) return Printf("%.*f", 1, metres * 1e2) + " cm";
+  return Printf("%.*f", 2, metres) + " m";
+}
+
+std::string FormatDegrees(double degrees) { return Significant(degrees, 3) + kDegreeSign; }
+
+std::string FormatRecall(double percent) { return Printf("%.*f", 1, percent) + " %"; }
+
+std::string FormatPercent(double percent) { return Significant(percent, 3) + " %"; }
+
+std::string FormatPlain(const std::string& written, double value) {
+  const bool integer = written.find_first_of(".eE") == std::string::npos;
+  if (integer || (WrittenDigits(written) <= 5 && written.find_first_of("eE") == std::string::npos))
+    return written;
+  const double a = std::fabs(value);
+  if (a != 0 && (a < 1e-4 || a >= 1e15)) return Printf("%.*g", 3, value);
+  if (a >= 1e4) return Printf("%.*f", 0, value);
+  return Significant(value, 4);
+}
+
+namespace {
+
+std::string FormatNumber(const std::string& written, double v, Unit unit) {
+  switch (unit) {
+    case Unit::kMetres: return FormatLength(v);
+    case Unit::kCentimetres: return FormatLength(v * 1e-2);
+    case Unit::kMillimetres: return FormatLength(v * 1e-3);
+    case Unit::kDegrees: return FormatDegrees(v);
+    case Unit::kPercent: return FormatPercent(v);
+    case Unit::kRecall: return FormatRecall(v);
+    case Unit::kNone: break;
+  }
+  return FormatPlain(written, v);
+}
+
+std::vector<std::string> SplitList(const std::string& value) {
+  std::vector<std::string> parts;
+  size_t start = 0;
+  for (size_t at; (at = value.find(" / ", start)) != std::string::npos; start = at + 3)
+    parts.push_back(value.substr(start, at - start));
+  parts.push_back(value.substr(start));
+  return parts;
+}
+
+}  // namespace
+
+std::string DisplayCell(const std::string& value, Unit unit) {
+  double v;
+  if (ParseNumber(value, &v)) return FormatNumber(value, v, unit);
+  const std::vector<std::string> parts = SplitList(value);
+  if (parts.size() < 2) return value;
+  std::vector<std::string> shown;
+  for (const std::string& p : parts) {
+    if (!ParseNumber(p, &v)) return value;
+    shown.push_back(FormatNumber(p, v, unit));
+  }
+  // "98.7 % / 100.0 %" -> "98.7 / 100.0 %" when every part has the same unit.
+  const size_t space = shown[0].rfind(' ');
+  const std::string suffix = space == std::string::npos ? "" : shown[0].substr(space);
+  bool same = !suffix.empty();
+  for (const std::string& s : shown) same = same && EndsWith(s, suffix);
+  std::string out;
+  for (const std::string& s : shown)
+    out += (out.empty() ? "" : " / ") + (same ? s.substr(0, s.size() - suffix.size()) : s);
+  return same ? out + suffix : out;
+}
+
+std::string ShortenNumbers(const std::string& text) {
+  static const std::regex number(R"([-+]?\d+\.\d+(?:[eE][-+]?\d+)?)");
+  std::string out;
+  auto begin = std::sregex_iterator(text.begin(), text.end(), number);
+  size_t last = 0;
+  for (auto it = begin; it != std::sregex_iterator(); ++it) {
+    const size_t at = static_cast<size_t>(it->position()), len = static_cast<size_t>(it->length());
+    const auto word = [&](size_t i) {
+      return i < text.size() && (std::isalnum(static_cast<unsigned char>(text[i])) || text[i] == '_' || text[i] == '.');
+    };
+    // Part of a name or version ("v1.2.3", "run-2.5x"): left alone.
+    if ((at > 0 && word(at - 1)) || word(at + len)) continue;
+    const std::string token = it->str();
+    double v;
+    if (WrittenDigits(token) <= 6 || !ParseNumber(token, &v)) continue;
+    out += text.substr(last, at - last) + FormatPlain(token, v);
+    last = at + len;
+  }
+  return out + text.substr(last);
+}
+
 std::string Table(const Csv& csv, const std::string& source, const std::string& caption,
-                  const std::vector<std::string>& columns) {
+                  const std::vector<std::string>& columns, Unit fallback) {
   std::vector<int> shown;
   if (columns.empty()) {
     for (size_t c = 0; c < csv.header.size(); ++c) shown.push_back(static_cast<int>(c));
@@ -163,6 +315,7 @@ std::string Table(const Csv& csv, const std::string& source, const std::string& 
     for (const auto& name : columns)
       if (const int c = csv.Column(name); c >= 0) shown.push_back(c);
   }
+  static const std::set<std::string> kStatistics = {"rmse", "mean", "median", "std", "min", "max"};
   std::string h = "<div class=\"table-wrap\"><table class=\"data\" data-source=\"" + Escape(source) + "\">";
   if (!caption.empty())
     h += "<caption>" + Escape(caption) + " <span class=\"source\">" + Escape(source) + "</span></caption>";
@@ -171,12 +324,16 @@ std::string Table(const Csv& csv, const std::string& source, const std::string& 
   h += "</tr></thead><tbody>";
   for (size_t r = 0; r < csv.rows.size(); ++r) {
     h += "<tr data-row=\"" + std::to_string(r) + "\">";
+    const Unit row_unit = csv.rows[r].empty() ? Unit::kNone : UnitOf(csv.rows[r][0]);
     for (int c : shown) {
       const std::string& v = c < static_cast<int>(csv.rows[r].size()) ? csv.rows[r][c] : std::string();
+      Unit unit = UnitOf(csv.header[c]);
+      if (unit == Unit::kNone) unit = kStatistics.count(Lower(csv.header[c])) ? row_unit : fallback;
       double x;
       const bool number = ParseNumber(v, &x);
-      h += std::string("<td") + (number ? " class=\"num\"" : "") + " data-value=\"" + Escape(v) + "\">" +
-           Escape(DisplayNumber(v)) + "</td>";
+      h += std::string("<td") + (number ? " class=\"num\"" : "") + " data-value=\"" + Escape(v) + "\"" +
+           (unit == Unit::kNone ? "" : std::string(" data-unit=\"") + Escape(UnitName(unit)) + "\"") + ">" +
+           Escape(DisplayCell(v, unit)) + "</td>";
     }
     h += "</tr>";
   }

@@ -45,6 +45,65 @@ int CacheEntries(const fs::path& ws, const std::string& node) {
   return n;
 }
 
+// `locforge kapture export` of the benchmark's map (its default nodes): one
+// kapture that `kapture info --strict` finds clean and that holds what the
+// nodes hold, keypoints byte for byte, records linked to the map's files.
+void ExpectExportOfTheMap(const fs::path& bin, const fs::path& ws, const fs::path& dir) {
+  const fs::path out = dir / "export";
+  ASSERT_EQ(testing::RunHost(bin, {"kapture", "export", ws.string(), out.string()}, dir / "export.log"), 0)
+      << ReadFile(dir / "export.log");
+  EXPECT_NE(ReadFile(dir / "export.log").find("nodes (default): map,map_features,map_verified,map_global,triangulation"),
+            std::string::npos)
+      << ReadFile(dir / "export.log");
+  ASSERT_EQ(testing::RunHost(bin, {"kapture", "info", "--strict", out.string()}, dir / "info.log"), 0)
+      << ReadFile(dir / "info.log");
+  EXPECT_EQ(ReadFile(out / "sensors/sensors.txt").rfind("# kapture format: 1.1\n", 0), 0u);
+  const kp::Kapture ex(out), map(ws / "nodes/map"), features(ws / "nodes/map_features"),
+      matches(ws / "nodes/map_verified"), global(ws / "nodes/map_global"), mapper(ws / "nodes/triangulation");
+  EXPECT_EQ(ex.CameraImages(), map.CameraImages());
+  EXPECT_EQ(ex.trajectories().size(), map.trajectories().size());
+  EXPECT_EQ(ex.sensors().size(), map.sensors().size());
+  for (const kp::FeatureKind kind : {kp::FeatureKind::kKeypoints, kp::FeatureKind::kDescriptors,
+                                     kp::FeatureKind::kGlobalFeatures}) {
+    const kp::Kapture& node = kind == kp::FeatureKind::kGlobalFeatures ? global : features;
+    const auto sets = node.FeatureSets(kind);
+    ASSERT_EQ(sets.size(), 1u);
+    const std::vector<std::string> images = node.FeatureImages(kind, sets[0].type);
+    EXPECT_EQ(ex.FeatureImages(kind, sets[0].type), images);
+    EXPECT_EQ(images.size(), map.CameraImages().size());
+    if (kind != kp::FeatureKind::kKeypoints) continue;
+    EXPECT_TRUE(fs::exists(out / "reconstruction/keypoints" / sets[0].type / "keypoints.txt"));
+    for (const std::string& image : images)
+      EXPECT_EQ(ReadFile(ex.FeatureFile(kind, sets[0].type, image)), ReadFile(node.FeatureFile(kind, sets[0].type, image)))
+          << image;
+  }
+  const std::string type = matches.MatchesTypes().at(0);
+  EXPECT_EQ(ex.MatchPairs(type), matches.MatchPairs(type));
+  EXPECT_GT(ex.MatchPairs(type).size(), 0u);
+  EXPECT_EQ(ex.points3d().size(), mapper.points3d().size());
+  EXPECT_GT(ex.points3d().size(), 0u);
+  EXPECT_EQ(ex.observations().size(), mapper.observations().size());
+  const auto record = ex.ReadDataRecords(kp::kSensorCamera).at(0);
+  const fs::path image = out / "sensors/records_data" / record.path;
+  EXPECT_TRUE(fs::is_symlink(image));
+  EXPECT_EQ(fs::read_symlink(image), fs::canonical(ws / "nodes/map/sensors/records_data" / record.path));
+
+  // A second export over it needs --force; two nodes holding different
+  // camera records are refused, naming both.
+  EXPECT_EQ(testing::RunHost(bin, {"kapture", "export", ws.string(), out.string()}, dir / "export2.log"), 2);
+  EXPECT_EQ(testing::RunHost(bin, {"kapture", "export", ws.string(), out.string(), "--force", "--copy"},
+                             dir / "export3.log"),
+            0)
+      << ReadFile(dir / "export3.log");
+  EXPECT_FALSE(fs::is_symlink(out / "sensors/records_data" / record.path));
+  EXPECT_EQ(testing::RunHost(bin, {"kapture", "export", ws.string(), (dir / "both").string(), "--nodes", "map,query"},
+                             dir / "export4.log"),
+            2);
+  EXPECT_NE(ReadFile(dir / "export4.log").find("nodes 'map' and 'query'"), std::string::npos)
+      << ReadFile(dir / "export4.log");
+  EXPECT_FALSE(fs::exists(dir / "both"));
+}
+
 TEST(BenchmarkE2E, SiftDenseVladBothSolversOnTinySimulator) {
   const fs::path bin = LOCFORGE_BINARY_DIR;
   const fs::path dir = testing::MakeTempDir("benchmark_e2e");
@@ -128,6 +187,7 @@ TEST(BenchmarkE2E, SiftDenseVladBothSolversOnTinySimulator) {
   EXPECT_EQ(table[2][0], "sift+densevlad image_registrator");
   EXPECT_TRUE(fs::exists(ws / "nodes/table/table.md"));
   EXPECT_TRUE(fs::exists(ws / "nodes/table/table.tex"));
+  ExpectExportOfTheMap(bin, ws, dir);
 
   // A second variant (fewer retrieved pairs): features and the vocabulary come
   // from the cache, the pairs and everything after them are recomputed.

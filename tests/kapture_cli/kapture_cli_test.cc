@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "locforge/fs.h"
 #include "testing.h"
@@ -52,6 +54,8 @@ TEST(KaptureCli, Help) {
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_TRUE(Has(r, "Usage: locforge kapture info DIR")) << r.output;
   EXPECT_TRUE(Has(r, "locforge kapture copy SRC DST")) << r.output;
+  EXPECT_TRUE(Has(r, "locforge kapture export W OUT")) << r.output;
+  EXPECT_EQ(RunKapture("export onlyone").code, 2);
   EXPECT_EQ(RunKapture("").code, 2);
   EXPECT_EQ(RunKapture("frobnicate").code, 2);
   EXPECT_EQ(RunKapture("info").code, 2);
@@ -131,6 +135,54 @@ TEST(KaptureCli, Copy) {
   // The copy reads back with the same summary.
   const Result a = RunKapture("info " + Quote(src.string())), b = RunKapture("info " + Quote(dst.string()));
   EXPECT_EQ(a.output.substr(a.output.find('\n')), b.output.substr(b.output.find('\n')));
+  fs::remove_all(tmp);
+}
+
+// `kapture export` of a workspace whose nodes each hold a part of maupertuis
+// (as a dataset, features, matches and mapper node do): one kapture equal to
+// the sample, records linked; unfinished or unknown nodes refused.
+TEST(KaptureCli, ExportJoinsNodeParts) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(src, "data/kapture/maupertuis/kapture");
+  const fs::path tmp = locforge::testing::MakeTempDir("kapture_cli_export");
+  const fs::path ws = tmp / "ws", out = tmp / "out";
+  const std::pair<const char*, std::vector<const char*>> parts[] = {
+      {"dataset", {"sensors"}},
+      {"features", {"reconstruction/keypoints", "reconstruction/descriptors"}},
+      {"matches", {"reconstruction/matches"}},
+      {"mapper", {"reconstruction/points3d.txt", "reconstruction/observations.txt"}}};
+  for (const auto& [node, paths] : parts) {
+    for (const char* rel : paths) {
+      fs::create_directories((ws / "nodes" / node / rel).parent_path());
+      fs::copy(src / rel, ws / "nodes" / node / rel, fs::copy_options::recursive);
+    }
+    if (std::string(node) != "mapper") locforge::WriteFileAtomic(ws / "nodes" / node / ".locforge-complete", "{}");
+  }
+  const std::string nodes = " --nodes dataset,features,matches,mapper";
+  Result r = RunKapture("export " + Quote(ws.string()) + " " + Quote(out.string()) + nodes);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Has(r, "node 'mapper' has not finished")) << r.output;
+  locforge::WriteFileAtomic(ws / "nodes/mapper/.locforge-complete", "{}");
+  r = RunKapture("export " + Quote(ws.string()) + " " + Quote(out.string()) + nodes);
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(Has(r, ", 4 camera records")) << r.output;
+  EXPECT_TRUE(Has(r, ", 4 record files, 4 descriptors/SIFT files, 4 keypoints/SIFT files, 6 SIFT match pairs, "
+                     "1039 points3d")) << r.output;
+  const Result info = RunKapture("info --strict " + Quote(out.string()));
+  EXPECT_EQ(info.code, 0) << info.output;
+  EXPECT_TRUE(Has(info, "problems: none")) << info.output;
+  for (const char* rel : {"reconstruction/keypoints/SIFT/00.jpg.kpt", "reconstruction/descriptors/SIFT/03.jpg.desc",
+                          "reconstruction/matches/SIFT/00.jpg.overlapping/01.jpg.matches", "sensors/records_data/02.jpg"})
+    EXPECT_TRUE(locforge::ReadFile(src / rel) == locforge::ReadFile(out / rel)) << rel;
+  EXPECT_TRUE(fs::is_symlink(out / "sensors/records_data/02.jpg"));
+  EXPECT_EQ(RunKapture("export " + Quote(ws.string()) + " " + Quote(out.string()) + nodes).code, 2);  // not empty
+  r = RunKapture("export " + Quote(ws.string()) + " " + Quote((tmp / "o2").string()) + " --nodes dataset,nothere");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Has(r, "no node 'nothere'")) << r.output;
+  r = RunKapture("export " + Quote(ws.string()) + " " + Quote((tmp / "o3").string()));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(Has(r, "no run record")) << r.output;
+  EXPECT_EQ(RunKapture("export " + Quote(src.string()) + " " + Quote((tmp / "o4").string())).code, 2);
+  EXPECT_FALSE(fs::exists(tmp / "o2"));
   fs::remove_all(tmp);
 }
 

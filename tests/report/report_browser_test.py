@@ -2,10 +2,12 @@
 """The report of a workspace opened in a real browser: Debian's Chromium,
 headless, driven by chromedriver over the W3C WebDriver protocol (standard
 library only). Checks that the page loads without console errors, that every
-image has a non-zero natural size, and that every table naming a CSV file of
-the workspace holds that file's values (exactly in data-value, and the shown
-text within its 4-significant-digit rounding). Optionally saves a screenshot
-of the first screen.
+image has a non-zero natural size, that every table naming a CSV file of the
+workspace holds that file's values (exactly in data-value, and the shown text,
+read back with its unit, equal to it within the precision it is shown with),
+that no long raw number is shown anywhere, and that the page does not scroll
+sideways at 1280 px (wide tables scroll in their own box). Optionally saves a
+screenshot of the first screen.
 
   report_browser_test.py --report WS/report.html --workspace WS [--screenshot out.png]
 
@@ -16,6 +18,7 @@ import argparse
 import base64
 import csv
 import json
+import math
 import os
 import re
 import shutil
@@ -76,9 +79,86 @@ class Driver:
 
 def number(text):
     try:
-        return float(text)
+        x = float(text)
     except ValueError:
         return None
+    return x if math.isfinite(x) else None
+
+
+# What one unit of the shown text is in the file's unit (a cell's data-unit).
+LENGTHS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+SHOWN_UNIT = re.compile(r"^(.*?)\s*(mm|cm|m|\u00b0|%)?$")
+
+
+def half_step(shown):
+    """Half the last shown digit of a number as text ("2.07" -> 0.005, "1.5e-05" -> 5e-07)."""
+    mantissa, _, exponent = shown.lower().partition("e")
+    decimals = len(mantissa.partition(".")[2])
+    return 0.5 * 10.0 ** (-decimals + (int(exponent) if exponent else 0))
+
+
+def shown_values(text, unit):
+    """The numbers a cell shows, in the file's unit `unit`, each with its
+    tolerance; None when the text is not numbers in a unit that fits."""
+    match = SHOWN_UNIT.match(text.strip())
+    body, suffix = match.group(1), match.group(2) or ""
+    if unit in LENGTHS:
+        if suffix not in LENGTHS:
+            return None
+        scale = LENGTHS[suffix] / LENGTHS[unit]
+    elif unit == "deg":
+        scale = 1.0 if suffix == "\u00b0" else None
+    elif unit in ("%", "recall"):
+        scale = 1.0 if suffix == "%" else None
+    else:
+        scale = 1.0 if suffix == "" else None
+    if scale is None:
+        return None
+    out = []
+    for part in body.split(" / "):
+        x = number(part.strip())
+        if x is None:
+            return None
+        out.append((x * scale, half_step(part.strip()) * scale))
+    return out
+
+
+def same_value(text, value, unit):
+    """True when the shown text is the file's value (a number or "a / b / c")
+    within the precision shown; text that is no number must be shown as is."""
+    expected = [number(p.strip()) for p in value.split(" / ")]
+    if any(x is None for x in expected):
+        return text == value
+    shown = shown_values(text, unit)
+    if shown is None or len(shown) != len(expected):
+        return False
+    return all(abs(x - e) <= tol * (1 + 1e-9) + 1e-12 * abs(e) for (x, tol), e in zip(shown, expected))
+
+
+# The unit a column's header names, as a reader expects to see it in its cells.
+HEADER_UNITS = [(re.compile(r"(_m|\(m\)|\(cm\)|\(mm\))$"), ("mm", "cm", "m")),
+                (re.compile(r"(_deg|\(deg\))$"), ("\u00b0",)),
+                (re.compile(r"^\(?[0-9.]+ ?m, ?[0-9.]+ ?deg\)?$"), ("%",))]
+
+
+def header_unit(header):
+    for pattern, units in HEADER_UNITS:
+        if pattern.search(header.strip().lower()):
+            return units
+    return None
+
+
+# A raw double on screen: a decimal number with more than 6 significant digits.
+RAW_NUMBER = re.compile(r"(?<![\w.])[-+]?(?:0\.0*[1-9]\d{6,}|[1-9]\d*\.\d+)(?![\w.])")
+
+
+def raw_numbers(text):
+    found = []
+    for m in RAW_NUMBER.finditer(text):
+        digits = re.sub(r"^[-+]?0\.0*|[^0-9]", "", m.group(0)).lstrip("0")
+        if len(digits) > 6:
+            found.append(m.group(0))
+    return found
 
 
 def read_csv(path):
@@ -134,7 +214,8 @@ def check(args):
             source: t.dataset.source,
             header: Array.from(t.querySelectorAll('thead th')).map(th => [th.dataset.column, th.textContent]),
             rows: Array.from(t.querySelectorAll('tbody tr')).map(tr =>
-              Array.from(tr.querySelectorAll('td')).map(td => [td.dataset.value, td.textContent]))}))""")
+              Array.from(tr.querySelectorAll('td')).map(td =>
+                [td.dataset.value, td.textContent, td.dataset.unit || ""]))}))""")
         if not tables:
             failures.append("no table naming a CSV file")
         cells = 0
@@ -148,18 +229,25 @@ def check(args):
                 failures.append("%s: %d rows shown, %d in the file" % (t["source"], len(t["rows"]), len(body)))
                 continue
             for r, (shown, row) in enumerate(zip(t["rows"], body)):
-                for (value, text), c in zip(shown, columns):
+                for (value, text, unit), c in zip(shown, columns):
                     cells += 1
                     if value != row[c]:
                         failures.append("%s row %d column %s: data-value %r, file %r" %
                                         (t["source"], r, header[c], value, row[c]))
-                    a, b = number(text), number(row[c])
-                    if b is None:
-                        if text != row[c]:
-                            failures.append("%s row %d column %s: shows %r, file %r" %
-                                            (t["source"], r, header[c], text, row[c]))
-                    elif a is None or abs(a - b) > 1e-3 * max(abs(b), 1e-12):
-                        failures.append("%s row %d column %s: shows %r for %r" % (t["source"], r, header[c], text, row[c]))
+                    units = header_unit(header[c])
+                    if units and number(row[c]) is not None and not text.strip().endswith(units):
+                        failures.append("%s row %d column %s: shows %r, without its unit (%s)" %
+                                        (t["source"], r, header[c], text, " or ".join(units)))
+                    if not same_value(text, row[c], unit):
+                        failures.append("%s row %d column %s: shows %r for %r (unit %r)" %
+                                        (t["source"], r, header[c], text, row[c], unit))
+        # No raw double anywhere on screen, and no sideways scrolling of the page.
+        text = driver.script("return document.body.innerText")
+        for raw in raw_numbers(text)[:10]:
+            failures.append("raw number on screen: " + raw)
+        widths = driver.script("return [document.documentElement.scrollWidth, window.innerWidth]")
+        if widths[0] > widths[1]:
+            failures.append("the page is %d px wide in a %d px window" % (widths[0], widths[1]))
         # Summary cards: each shows a figure (a card shows "-" when it could not
         # read its node's numbers, e.g. a renamed column).
         cards = driver.script("""

@@ -21,7 +21,7 @@ bool CopyOptions::Check(std::string* why) const {
   return true;
 }
 
-namespace {
+namespace files {
 
 fs::path Canonical(const fs::path& p) {
   std::error_code ec;
@@ -74,6 +74,10 @@ void RewriteFeatureFile(const fs::path& from, const fs::path& to, DType dtype, i
   WriteFeatureFile(to, ReadFeatureFile(from, dtype, dsize, display));
 }
 
+}  // namespace files
+
+namespace {
+
 // Writes the entries of an archive as loose files beside `to`, feature
 // files checked (a loose file of the source with the same name wins, as it
 // does when reading). Returns the number of files written.
@@ -112,6 +116,10 @@ int64_t CopyArchive(const fs::path& from, const fs::path& to, const std::string&
   CopyVerbatim(from, to);
   return 1;
 }
+
+}  // namespace
+
+namespace files {
 
 template <class Record>
 int64_t CopyRecords(const fs::path& from, const fs::path& to, RecordKind kind,
@@ -153,6 +161,10 @@ int64_t CopyRecordsFile(const fs::path& from, const fs::path& to, const std::str
   }
   return 0;
 }
+
+}  // namespace files
+
+namespace {
 
 constexpr size_t kListCap = 100;
 

@@ -85,6 +85,23 @@ inline bool IsDataRecordType(const std::string& type) {
   return k == RecordKind::kCamera || k == RecordKind::kLidar || k == RecordKind::kDepth;
 }
 
+// Shared by copy and export (copy.cc).
+fs::path Canonical(const fs::path& p);
+bool IsWithin(const fs::path& inner, const fs::path& outer);
+// Refuses (InputError) a destination equal to, inside or containing `src`,
+// a non-folder, and a non-empty folder unless `overwrite`.
+void CheckDestination(const fs::path& src, const fs::path& dst, bool overwrite);
+// Copies a file byte for byte, atomically.
+void CopyVerbatim(const fs::path& from, const fs::path& to);
+// Reads a feature or matches file checked against dtype/dsize and writes
+// its bytes to `to`.
+void RewriteFeatureFile(const fs::path& from, const fs::path& to, DType dtype, int64_t dsize,
+                        const std::string& display);
+// Streams records_<type>.txt from `from` to `to` in the toolbox's format;
+// returns the number of records.
+int64_t CopyRecordsFile(const fs::path& from, const fs::path& to, const std::string& type,
+                        const std::string& display, const fs::path& data_root);
+
 }  // namespace locforge::kapture::files
 
 #endif  // LOCFORGE_SDK_KAPTURE_FILES_H_

@@ -262,6 +262,52 @@ CopyReport CopyKapture(const fs::path& src, const fs::path& dst,
 int64_t CopyFeatureFolder(FeatureKind kind, const fs::path& src, const fs::path& dst,
                           bool overwrite = false);
 
+// ----------------------------------------------------------------- export
+
+// One kapture folder to export from, whole or partial (a workspace node's
+// folder holds only what its stage made: features alone, matches alone, ...).
+struct ExportSource {
+  std::string name;  // what messages call it, e.g. the node's name
+  fs::path dir;
+};
+
+struct ExportOptions {
+  // Records' files as symbolic links to the source's files (their canonical
+  // path); false: copied.
+  bool link_records_data = true;
+  // Replace a destination folder that exists and is not empty.
+  bool overwrite = false;
+  // The source whose sensors/trajectories.txt is exported (the others' are
+  // left out); empty: every source's, merged.
+  std::string trajectories_from;
+};
+
+struct ExportReport {
+  int64_t sensors = 0, rigs = 0, trajectory_poses = 0;
+  std::map<std::string, int64_t> records;        // by sensor type
+  int64_t data_files = 0;                        // records_data files linked or copied
+  std::map<std::string, int64_t> feature_files;  // by "<kind>/<type>"
+  std::map<std::string, int64_t> match_pairs;    // by keypoints type
+  int64_t points3d = 0, observation_entries = 0;
+  int64_t missing_data_count = 0;                // records whose file is absent in their source
+  std::vector<std::string> missing_data_files;   // the first 100 of them
+};
+
+// Writes one complete kapture 1.1 at `dst` from several partial ones, as
+// the toolbox lays it out (so kapture-localization takes it): sensors, rigs
+// and trajectories merged by id / (timestamp, device); every other file
+// (records_<type>.txt, <kind>.txt, feature, matches, points3d and
+// observations files) re-emitted from the first source holding it, and a
+// later source holding it too must hold the same (re-emitted) bytes; tar-
+// packed types are written loose. Records' files under records_data are
+// linked or copied (options). Refuses (InputError, naming the file, the
+// field or line and both sources) two sources that disagree, a source
+// holding no kapture file, and a destination as CopyKapture does. Built in a
+// temporary sibling folder renamed to `dst` once complete: `dst` is never
+// left half written.
+ExportReport ExportKapture(const std::vector<ExportSource>& sources, const fs::path& dst,
+                           const ExportOptions& options = {});
+
 // ------------------------------------------------------------- inspection
 
 struct RecordsSummary {
