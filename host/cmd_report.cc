@@ -323,11 +323,11 @@ std::string ReportBuilder::Dataset() {
       h += "<p>Sensors: " + Escape(sensors) + "; rigs: " + std::to_string(s.rigs) + "; poses: " +
            std::to_string(s.trajectory_poses) + " of " + std::to_string(s.trajectory_devices) + " devices.</p>\n";
       h += "<div class=\"table-wrap\"><table><thead><tr><th>records</th><th>count</th><th>devices</th>"
-           "<th>duration (s)</th><th>missing files</th></tr></thead><tbody>";
+           "<th>duration</th><th>missing files</th></tr></thead><tbody>";
       for (const auto& r : s.records)
         h += "<tr><td>" + Escape(r.sensor_type) + "</td><td class=\"num\">" + std::to_string(r.count) +
              "</td><td class=\"num\">" + std::to_string(r.devices) + "</td><td class=\"num\">" +
-             Fixed((r.last - r.first) * 1e-6, 1) + "</td><td class=\"num\">" + std::to_string(r.missing_files) +
+             report::FormatDuration((r.last - r.first) * 1e-6) + "</td><td class=\"num\">" + std::to_string(r.missing_files) +
              "</td></tr>";
       h += "</tbody></table></div>\n";
       for (const auto& p : s.problems) Warn(Label(n) + ": " + p);

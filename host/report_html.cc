@@ -226,6 +226,13 @@ std::string FormatDegrees(double degrees) { return Significant(degrees, 3) + kDe
 
 std::string FormatRecall(double percent) { return Printf("%.*f", 1, percent) + " %"; }
 
+std::string FormatDuration(double seconds) {
+  if (!std::isfinite(seconds)) return Significant(seconds, 3);
+  if (std::abs(seconds) < 60) return Printf("%.*f s", 1, seconds);
+  if (std::abs(seconds) < 3600) return Printf("%.*f min", 1, seconds / 60);
+  return Printf("%.*f h", 1, seconds / 3600);
+}
+
 std::string FormatPercent(double percent) { return Significant(percent, 3) + " %"; }
 
 std::string FormatPlain(const std::string& written, double value) {

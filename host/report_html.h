@@ -55,6 +55,8 @@ std::string FormatPercent(double percent);
 // digits as written, others with 4 significant digits, never an exponent
 // between 1e-4 and 1e15.
 std::string FormatPlain(const std::string& written, double value);
+// a duration in the unit a person reads it in: "12.5 s", "3.2 min", "48.0 h";
+std::string FormatDuration(double seconds);
 // `value` rounded to `digits` significant digits in fixed notation.
 std::string Significant(double value, int digits);
 

@@ -38,6 +38,12 @@ TEST(ReportFormat, RecallAndPercent) {
   EXPECT_EQ(FormatPercent(3), "3.00 %");
 }
 
+TEST(ReportFormat, DurationsInSecondsMinutesOrHours) {
+  EXPECT_EQ(FormatDuration(12.46), "12.5 s");
+  EXPECT_EQ(FormatDuration(192), "3.2 min");
+  EXPECT_EQ(FormatDuration(172804.0), "48.0 h");
+}
+
 TEST(ReportFormat, ColumnUnitsFromHeaders) {
   EXPECT_EQ(UnitOf("median_position_m"), Unit::kMetres);
   EXPECT_EQ(UnitOf("rpe_1m_m"), Unit::kMetres);

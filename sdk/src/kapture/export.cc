@@ -232,7 +232,9 @@ int64_t Exporter::AddFeatures(const ExportSource& source, const Kapture& k) {
 int64_t Exporter::AddMatches(const ExportSource& source, const Kapture& k) {
   int64_t files = 0;
   for (const std::string& type : k.MatchesTypes()) {
-    for (const auto& [image1, image2] : k.MatchPairs(type)) {
+    for (const auto& pair : k.MatchPairs(type)) {
+      const std::string& image1 = pair.first;  // C++17: a lambda cannot capture a structured binding
+      const std::string& image2 = pair.second;
       const std::string rel = std::string(layout::kMatches) + "/" + type + "/" +
                               layout::MatchesFile(image1, image2);
       SafeJoin(out_, rel, source.name + "/" + rel);
