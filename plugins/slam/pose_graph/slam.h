@@ -36,6 +36,12 @@ inline double YawOf(const Pose& T) {
   return std::atan2(x.y(), x.x());
 }
 
+// Headings the join's loops found, to be seeded at B's start too (slam_join.cc):
+// those two loops agree on (one loop alone is as often noise), first time
+// seen, more than max_rotation_deg from the turns already tried and from each other.
+std::vector<double> PlaceHeadings(const std::vector<JoinCandidate>& candidates, const std::vector<double>& turns,
+                                  double max_rotation_deg);
+
 // What the algorithm reports and asks of its caller.
 struct SlamHooks {
   std::function<void(const std::string&)> info = [](const std::string&) {};

@@ -201,28 +201,6 @@ JoinDecisionOptions DecisionOptionsOf(const SlamOptions& o, double cell_m) {
   return jo;
 }
 
-// Headings the places found, to be tried at the start too: a rough check
-// starts from the turns, up to half a step off, and may not reach a heading
-// between them, while a place elsewhere in a floor of repeated rooms can find
-// the heading with the wrong translation. A heading qualifies when two loops
-// agree on it (one loop alone is as often noise), first time seen, not tried yet.
-std::vector<double> PlaceHeadings(const std::vector<JoinCandidate>& candidates, const std::vector<double>& turns,
-                                  double max_rotation_deg) {
-  const double tolerance = max_rotation_deg * M_PI / 180;
-  auto near = [&](double yaw, auto begin, auto end) {
-    return std::any_of(begin, end, [&](double k) { return std::abs(std::remainder(yaw - k, 2 * M_PI)) < tolerance; });
-  };
-  std::vector<double> yaws, place_yaws;
-  for (const auto& c : candidates) yaws.push_back(YawOf(c.T_A_B));
-  for (size_t i = 0; i < yaws.size(); ++i) {
-    const double y = yaws[i];
-    if (!near(y, yaws.begin(), yaws.begin() + i) && near(y, yaws.begin() + i + 1, yaws.end()) &&
-        !near(y, turns.begin(), turns.end()) && !near(y, place_yaws.begin(), place_yaws.end()))
-      place_yaws.push_back(y);
-  }
-  return place_yaws;
-}
-
 // The log line of a join attempt (at.frames: its hypotheses).
 std::string JoinLog(const JoinAttempt& at, int seeds, int places, size_t loops, const JoinDecision& d) {
   const std::vector<JoinHypothesis>& hypotheses = at.frames;
@@ -250,6 +228,27 @@ std::string JoinLog(const JoinAttempt& at, int seeds, int places, size_t loops, 
 }
 
 }  // namespace
+
+// Headings the places found, tried at the start too: a rough check starts
+// from the turns, up to half a step off, and may not reach a heading between
+// them, while a place elsewhere in a floor of repeated rooms can find the
+// heading with the wrong translation.
+std::vector<double> PlaceHeadings(const std::vector<JoinCandidate>& candidates, const std::vector<double>& turns,
+                                  double max_rotation_deg) {
+  const double tolerance = max_rotation_deg * M_PI / 180;
+  auto near = [&](double yaw, auto begin, auto end) {
+    return std::any_of(begin, end, [&](double k) { return std::abs(std::remainder(yaw - k, 2 * M_PI)) < tolerance; });
+  };
+  std::vector<double> yaws, place_yaws;
+  for (const auto& c : candidates) yaws.push_back(YawOf(c.T_A_B));
+  for (size_t i = 0; i < yaws.size(); ++i) {
+    const double y = yaws[i];
+    if (!near(y, yaws.begin(), yaws.begin() + i) && near(y, yaws.begin() + i + 1, yaws.end()) &&
+        !near(y, turns.begin(), turns.end()) && !near(y, place_yaws.begin(), place_yaws.end()))
+      place_yaws.push_back(y);
+  }
+  return place_yaws;
+}
 
 bool Slam::TryJoin(int A, int B, int round) {
   ++stats_.join_attempts;
