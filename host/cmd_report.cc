@@ -205,105 +205,126 @@ std::string Duration(double seconds) {
   return Fixed(seconds / 60, 1) + " min";
 }
 
-std::string ReportBuilder::Summary() {
-  std::string cards;
-  auto card = [&](const std::string& title, const std::string& big, const std::vector<std::string>& lines) {
-    cards += "<div class=\"card\"><h3>" + Escape(title) + "</h3><div class=\"big\">" + big + "</div>";
-    for (const auto& l : lines) cards += "<p>" + l + "</p>";
-    cards += "</div>\n";
-  };
-  // The recording.
-  for (const Node* n : OfStage("source/simulator")) {
-    try {
-      const auto s = kapture::InspectKapture(n->folder);
-      int64_t images = 0, scans = 0;
-      for (const auto& r : s.records) {
-        if (r.sensor_type == "camera") images = r.count;
-        if (r.sensor_type == "lidar") scans = r.count;
+// One summary card: a title, a big figure, lines of detail (HTML, escaped by the caller).
+void Card(std::string* cards, const std::string& title, const std::string& big, const std::vector<std::string>& lines) {
+  *cards += "<div class=\"card\"><h3>" + Escape(title) + "</h3><div class=\"big\">" + big + "</div>";
+  for (const auto& l : lines) *cards += "<p>" + l + "</p>";
+  *cards += "</div>\n";
+}
+
+// The recording (simulated): images, scans, true poses, preset and seed.
+void RecordingCard(const Node& n, std::string* cards) {
+  try {
+    const auto s = kapture::InspectKapture(n.folder);
+    int64_t images = 0, scans = 0;
+    for (const auto& r : s.records) {
+      if (r.sensor_type == "camera") images = r.count;
+      if (r.sensor_type == "lidar") scans = r.count;
+    }
+    std::vector<std::string> lines = {
+        Escape(std::to_string(scans) + " LiDAR scans, " + std::to_string(s.trajectory_poses) + " true poses")};
+    const auto p = n.record->params;
+    for (const auto& [k, v] : p)
+      if (k == "preset" || k == "seed") lines.push_back(Escape(k + ": " + v));
+    Card(cards, "Recording (simulated)", Escape(std::to_string(images)) + " images", lines);
+  } catch (const std::exception&) {
+  }
+}
+
+// The LiDAR half against the truth (eval/joins): false when its summary is unreadable.
+bool JoinsCard(const Node& n, std::string* cards) {
+  const YAML::Node j = LoadJson(n.folder / "summary.json");
+  if (!j || !j.IsMap()) return false;
+  auto num = [&](const char* k) { return j[k] ? Number(j[k].Scalar()) : std::nan(""); };
+  Card(cards, "LiDAR ground truth", Escape(report::FormatLength(num("ate_whole_m")) + " ATE"),
+       {Escape(report::FormatDegrees(num("rotation_whole_deg")) + " rotation RMS, whole recording, one rigid alignment"),
+        Escape(Fixed(num("right"), 0) + " sequence(s) joined right, " + Fixed(num("wrong"), 0) + " wrong, " +
+               Fixed(num("refused"), 0) + " refused")});
+  return true;
+}
+
+// An eval/trajectory node's ATE: false when it has none.
+bool TrajectoryCard(const Node& n, std::string* cards) {
+  const YAML::Node j = LoadJson(n.folder / "metrics.json");
+  if (!j || !j["ape_translation_m"]) return false;
+  Card(cards, "Trajectory (" + n.record->name + ")",
+       Escape(report::FormatLength(Number(j["ape_translation_m"]["rmse"].Scalar())) + " ATE"),
+       {Escape(report::FormatDegrees(Number(j["ape_rotation_deg"]["rmse"].Scalar())) + " rotation RMS")});
+  return true;
+}
+
+// The refined ground truth against the truth: the last row of eval/calibration.
+// False when the table has no row (the next node is tried); true otherwise,
+// an unreadable table included.
+bool CalibrationCard(const Node& n, std::string* cards) {
+  try {
+    const Csv c = report::ReadCsv(n.folder / "calibration.csv");
+    if (c.rows.empty()) return false;
+    const size_t last = c.rows.size() - 1;
+    Card(cards, "Refined ground truth (" + c.Cell(last, "estimate") + ")",
+         Escape(report::FormatLength(Number(c.Cell(last, "position RMS (cm)")) * 1e-2)),
+         {Escape("camera positions RMS; rotations " + report::FormatDegrees(Number(c.Cell(last, "rotation RMS (deg)")))),
+          Escape("focal error " + report::FormatPercent(Number(c.Cell(last, "focal error RMS (%)"))) + " RMS, from " +
+                 report::FormatPercent(Number(c.Cell(0, "focal error RMS (%)"))) + " (" + c.Cell(0, "estimate") + ")")});
+  } catch (const std::exception&) {
+  }
+  return true;
+}
+
+// The benchmark: recall of each method at the finest thresholds (rows all/all).
+void LocalizationCards(const Node& n, std::string* cards) {
+  try {
+    const Csv c = report::ReadCsv(n.folder / "summary.csv");
+    for (size_t r = 0; r < c.rows.size(); ++r) {
+      if (c.Cell(r, "group") != "all" || c.Cell(r, "split") != "all") continue;
+      std::vector<std::string> lines;
+      std::string big;
+      for (size_t col = 0; col < c.header.size(); ++col) {
+        const std::string& h = c.header[col];
+        // Recall columns: "0.1m,1deg" (eval/localization), also "(0.1m, 1deg)".
+        const bool recall = h.find("m,") != std::string::npos && h.size() > 3 && h.compare(h.size() - 3, 3, "deg") == 0;
+        if (!recall) continue;
+        const std::string value = report::DisplayCell(c.rows[r][col], report::Unit::kRecall);
+        if (big.empty()) big = Escape(value);
+        lines.push_back(Escape(h + ": " + value));
       }
-      std::vector<std::string> lines = {Escape(std::to_string(scans) + " LiDAR scans, " +
-                                               std::to_string(s.trajectory_poses) + " true poses")};
-      const auto p = n->record->params;
-      for (const auto& [k, v] : p)
-        if (k == "preset" || k == "seed") lines.push_back(Escape(k + ": " + v));
-      card("Recording (simulated)", Escape(std::to_string(images)) + " images", lines);
-    } catch (const std::exception&) {
+      if (!c.Cell(r, "queries").empty()) lines.push_back(Escape(c.Cell(r, "queries") + " queries"));
+      Card(cards, "Localization: " + c.Cell(r, "method"), big.empty() ? "-" : big, lines);
     }
-    break;
+  } catch (const std::exception&) {
   }
-  // The LiDAR half against the truth.
-  for (const Node* n : OfStage("eval/joins")) {
-    const YAML::Node j = LoadJson(n->folder / "summary.json");
-    if (!j || !j.IsMap()) continue;
-    auto num = [&](const char* k) { return j[k] ? Number(j[k].Scalar()) : std::nan(""); };
-    card("LiDAR ground truth", Escape(report::FormatLength(num("ate_whole_m")) + " ATE"),
-         {Escape(report::FormatDegrees(num("rotation_whole_deg")) + " rotation RMS, whole recording, one rigid alignment"),
-          Escape(Fixed(num("right"), 0) + " sequence(s) joined right, " + Fixed(num("wrong"), 0) + " wrong, " +
-                 Fixed(num("refused"), 0) + " refused")});
-    break;
-  }
-  if (OfStage("eval/joins").empty())
-    for (const Node* n : OfStage("eval/trajectory")) {
-      const YAML::Node j = LoadJson(n->folder / "metrics.json");
-      if (!j || !j["ape_translation_m"]) continue;
-      card("Trajectory (" + n->record->name + ")",
-           Escape(report::FormatLength(Number(j["ape_translation_m"]["rmse"].Scalar())) + " ATE"),
-           {Escape(report::FormatDegrees(Number(j["ape_rotation_deg"]["rmse"].Scalar())) + " rotation RMS")});
-      break;
-    }
-  // The refined ground truth against the truth: the last row of eval/calibration.
-  for (const Node* n : OfStage("eval/calibration")) {
-    try {
-      const Csv c = report::ReadCsv(n->folder / "calibration.csv");
-      if (c.rows.empty()) continue;
-      const size_t last = c.rows.size() - 1;
-      card("Refined ground truth (" + c.Cell(last, "estimate") + ")",
-           Escape(report::FormatLength(Number(c.Cell(last, "position RMS (cm)")) * 1e-2)),
-           {Escape("camera positions RMS; rotations " +
-                   report::FormatDegrees(Number(c.Cell(last, "rotation RMS (deg)")))),
-            Escape("focal error " + report::FormatPercent(Number(c.Cell(last, "focal error RMS (%)"))) +
-                   " RMS, from " + report::FormatPercent(Number(c.Cell(0, "focal error RMS (%)"))) + " (" +
-                   c.Cell(0, "estimate") + ")")});
-    } catch (const std::exception&) {
-    }
-    break;
-  }
-  // The benchmark: recall of each method at the finest thresholds.
-  for (const Node* n : OfStage("eval/localization")) {
-    try {
-      const Csv c = report::ReadCsv(n->folder / "summary.csv");
-      for (size_t r = 0; r < c.rows.size(); ++r) {
-        if (c.Cell(r, "group") != "all" || c.Cell(r, "split") != "all") continue;
-        std::vector<std::string> lines;
-        std::string big;
-        for (size_t col = 0; col < c.header.size(); ++col) {
-          const std::string& h = c.header[col];
-          // Recall columns: "0.1m,1deg" (eval/localization), also "(0.1m, 1deg)".
-          const bool recall = h.find("m,") != std::string::npos && h.size() > 3 &&
-                              h.compare(h.size() - 3, 3, "deg") == 0;
-          if (!recall) continue;
-          const std::string value = report::DisplayCell(c.rows[r][col], report::Unit::kRecall);
-          if (big.empty()) big = Escape(value);
-          lines.push_back(Escape(h + ": " + value));
-        }
-        if (!c.Cell(r, "queries").empty()) lines.push_back(Escape(c.Cell(r, "queries") + " queries"));
-        card("Localization: " + c.Cell(r, "method"), big.empty() ? "-" : big, lines);
-      }
-    } catch (const std::exception&) {
-    }
-  }
-  // The run.
+}
+
+// The run: nodes computed, cached and failed, threads, end.
+void RunCard(const RunRecord& run, std::string* cards) {
   int ran = 0, cached = 0, failed = 0;
   double computed = 0;
-  for (const auto& n : run_.nodes) {
+  for (const auto& n : run.nodes) {
     if (n.status == "ran" || n.status == "resumed") ++ran, computed += n.seconds;
     if (n.status == "cached") ++cached;
     if (n.status == "failed") ++failed;
   }
-  card("Run", Duration(run_.seconds),
+  Card(cards, "Run", Duration(run.seconds),
        {Escape(std::to_string(ran) + " nodes computed (" + Duration(computed) + "), " + std::to_string(cached) +
                " cached" + (failed ? ", " + std::to_string(failed) + " failed" : "")),
-        Escape(std::to_string(run_.threads) + " threads, finished " + run_.finished)});
+        Escape(std::to_string(run.threads) + " threads, finished " + run.finished)});
+}
+
+std::string ReportBuilder::Summary() {
+  std::string cards;
+  for (const Node* n : OfStage("source/simulator")) {
+    RecordingCard(*n, &cards);
+    break;
+  }
+  for (const Node* n : OfStage("eval/joins"))
+    if (JoinsCard(*n, &cards)) break;
+  if (OfStage("eval/joins").empty())
+    for (const Node* n : OfStage("eval/trajectory"))
+      if (TrajectoryCard(*n, &cards)) break;
+  for (const Node* n : OfStage("eval/calibration"))
+    if (CalibrationCard(*n, &cards)) break;
+  for (const Node* n : OfStage("eval/localization")) LocalizationCards(*n, &cards);
+  RunCard(run_, &cards);
   return "<section id=\"summary\" class=\"cards\">\n" + cards + "</section>\n";
 }
 

@@ -61,111 +61,145 @@ bool ParseShard(const std::string& text, int* index, int* count, bool* from_arra
   return task && *task && ParseShardNumbers(task + text.substr(5), index, count);
 }
 
+constexpr int kNotMine = -2;  // an option parser's "not one of mine"
+
+std::string ShardUsage(bool from_array, const std::string& v) {
+  return from_array ? "--shard array/N needs $SLURM_ARRAY_TASK_ID (a Slurm "
+                      "array task) from 0 to N-1, got '" +
+                          std::string(std::getenv("SLURM_ARRAY_TASK_ID") ? std::getenv("SLURM_ARRAY_TASK_ID") : "") +
+                          "'"
+                    : "--shard expects I/N with 0 <= I < N, got '" + v + "'";
+}
+
+// --set and --plugin-path (validate and run): -1 parsed, kNotMine, else the exit code.
+int TakeGraphOption(const std::string& command, const Args& args, size_t* i, GraphArgs* out) {
+  std::string v;
+  if (TakeOption(args, i, "--set", &v)) {
+    Override o;
+    if (!ParseOverride(v, &o)) return UsageError(command, "--set expects KEY=VALUE, got '" + v + "'");
+    out->sets.push_back(o);
+    out->forward.insert(out->forward.end(), {"--set", v});
+  } else if (TakeOption(args, i, "--plugin-path", &v)) {
+    out->plugin_paths.push_back(fs::absolute(v));
+    out->forward.insert(out->forward.end(), {"--plugin-path", fs::absolute(v).string()});
+  } else {
+    return kNotMine;
+  }
+  return -1;
+}
+
+// The options of a local run: -1 parsed, kNotMine, else the exit code.
+int TakeLocalOption(const std::string& command, const Args& args, size_t* i, GraphArgs* out) {
+  std::string v;
+  if (TakeOption(args, i, "--workspace", &v)) {
+    out->workspace = v;
+  } else if (TakeOption(args, i, "--threads", &v)) {
+    int64_t n = 0;
+    if (!ParseInt(v, &n) || n < 1 || n > 4096)
+      return UsageError(command, "--threads expects a number from 1 to 4096, got '" + v + "'");
+    out->threads = static_cast<int>(n);
+  } else if (TakeOption(args, i, "--shard", &v)) {
+    if (!ParseShard(v, &out->shard_index, &out->shard_count, &out->shard_from_array))
+      return UsageError(command, ShardUsage(out->shard_from_array, v));
+  } else if (TakeOption(args, i, "--variant", &v)) {
+    out->variant = v;
+  } else if (args[*i] == "--force") {
+    out->force = true;
+  } else {
+    return kNotMine;
+  }
+  return -1;
+}
+
+// The options of --executor slurm and of a job's run: -1 parsed, kNotMine, else the exit code.
+int TakeSlurmOption(const std::string& command, const Args& args, size_t* i, GraphArgs* out) {
+  std::string v;
+  int64_t n = 0;
+  if (TakeOption(args, i, "--executor", &v)) {
+    if (v != "local" && v != "slurm") return UsageError(command, "--executor expects local or slurm, got '" + v + "'");
+    out->executor = v;
+  } else if (TakeOption(args, i, "--shards", &v)) {
+    if (!ParseInt(v, &n) || n < 1 || n > 100000)
+      return UsageError(command, "--shards expects a number from 1 to 100000, got '" + v + "'");
+    out->shards = static_cast<int>(n);
+    out->shards_given = true;
+  } else if (TakeOption(args, i, "--slurm-opt", &v)) {
+    SchedulerSetting setting;
+    if (!ParseSchedulerSetting(v, &setting))
+      return UsageError(command, "--slurm-opt expects [SELECTOR:]OPTION=VALUE, got '" + v + "'");
+    out->slurm_settings.push_back(setting);
+  } else if (args[*i] == "--wait") {
+    out->wait = true;
+  } else if (TakeOption(args, i, "--poll", &v)) {
+    if (!ParseInt(v, &n) || n < 1 || n > 3600)
+      return UsageError(command, "--poll expects seconds from 1 to 3600, got '" + v + "'");
+    out->poll_seconds = static_cast<double>(n);
+  } else if (TakeOption(args, i, "--node", &v)) {
+    out->only_node = v;
+  } else if (TakeOption(args, i, "--expect-key", &v)) {
+    out->expect_key = v;
+  } else {
+    return kNotMine;
+  }
+  return -1;
+}
+
+// An unknown option (with the nearest known one), the graph, or an extra argument.
+int TakeOther(const std::string& command, const Args& args, size_t i, bool run, GraphArgs* out) {
+  if (args[i].rfind("-", 0) == 0) {
+    std::vector<std::string> known = {"--set", "--plugin-path", "--help"};
+    if (run)
+      known.insert(known.end(), {"--workspace", "--threads", "--force", "--shard", "--variant", "--executor",
+                                 "--shards", "--slurm-opt", "--wait", "--poll", "--node", "--expect-key"});
+    const std::string hint = DidYouMean(args[i], known);
+    return UsageError(command,
+                      "unknown option '" + args[i] + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
+  }
+  if (!out->graph.empty()) return UsageError(command, "unexpected argument '" + args[i] + "'");
+  out->graph = args[i];
+  return -1;
+}
+
+// Options that need, or exclude, each other: -1 when fine, else the exit code.
+int CheckCombinations(const std::string& command, bool run, const GraphArgs& a) {
+  if (a.graph.empty()) return UsageError(command, "expected a graph file (GRAPH.yaml)");
+  if (run && a.workspace.empty()) return UsageError(command, "--workspace DIR is required");
+  if (a.force && a.shard_count > 1)
+    return UsageError(command, "--force cannot be combined with --shard (shards share progress)");
+  if (a.executor != "slurm") {
+    for (const auto& [given, option] :
+         {std::pair{a.shards_given, "--shards"}, {!a.slurm_settings.empty(), "--slurm-opt"}, {a.wait, "--wait"}})
+      if (given) return UsageError(command, std::string(option) + " needs --executor slurm");
+  } else {
+    if (a.shard_count > 1 || !a.only_node.empty())
+      return UsageError(command, "--executor slurm submits every node and shard itself: drop "
+                                 "--shard and --node");
+    if (a.force)
+      return UsageError(command, "--force cannot be combined with --executor slurm (remove the "
+                                 "nodes' folders from the workspace cache instead)");
+    if (a.threads > 0)
+      return UsageError(command, "with --executor slurm, threads follow each job's "
+                                 "cpus-per-task: use --slurm-opt cpus-per-task=N");
+  }
+  if (!a.expect_key.empty() && a.only_node.empty()) return UsageError(command, "--expect-key needs --node");
+  return -1;
+}
+
 // Parses the arguments of validate (run=false) or run. Returns -1 when fine,
 // else the exit code after printing the usage error.
 int ParseArgs(const std::string& command, const Args& args, bool run, GraphArgs* out) {
   try {
     for (size_t i = 0; i < args.size(); ++i) {
-      std::string v;
-      if (TakeOption(args, &i, "--set", &v)) {
-        Override o;
-        if (!ParseOverride(v, &o))
-          return UsageError(command, "--set expects KEY=VALUE, got '" + v + "'");
-        out->sets.push_back(o);
-        out->forward.insert(out->forward.end(), {"--set", v});
-      } else if (TakeOption(args, &i, "--plugin-path", &v)) {
-        out->plugin_paths.push_back(fs::absolute(v));
-        out->forward.insert(out->forward.end(), {"--plugin-path", fs::absolute(v).string()});
-      } else if (run && TakeOption(args, &i, "--workspace", &v)) {
-        out->workspace = v;
-      } else if (run && TakeOption(args, &i, "--threads", &v)) {
-        int64_t n = 0;
-        if (!ParseInt(v, &n) || n < 1 || n > 4096)
-          return UsageError(command, "--threads expects a number from 1 to 4096, got '" + v + "'");
-        out->threads = static_cast<int>(n);
-      } else if (run && TakeOption(args, &i, "--shard", &v)) {
-        if (!ParseShard(v, &out->shard_index, &out->shard_count, &out->shard_from_array))
-          return UsageError(command, out->shard_from_array
-                                         ? "--shard array/N needs $SLURM_ARRAY_TASK_ID (a Slurm "
-                                           "array task) from 0 to N-1, got '" +
-                                               std::string(std::getenv("SLURM_ARRAY_TASK_ID")
-                                                               ? std::getenv("SLURM_ARRAY_TASK_ID")
-                                                               : "") +
-                                               "'"
-                                         : "--shard expects I/N with 0 <= I < N, got '" + v + "'");
-      } else if (run && TakeOption(args, &i, "--variant", &v)) {
-        out->variant = v;
-      } else if (run && args[i] == "--force") {
-        out->force = true;
-      } else if (run && TakeOption(args, &i, "--executor", &v)) {
-        if (v != "local" && v != "slurm")
-          return UsageError(command, "--executor expects local or slurm, got '" + v + "'");
-        out->executor = v;
-      } else if (run && TakeOption(args, &i, "--shards", &v)) {
-        int64_t n = 0;
-        if (!ParseInt(v, &n) || n < 1 || n > 100000)
-          return UsageError(command, "--shards expects a number from 1 to 100000, got '" + v + "'");
-        out->shards = static_cast<int>(n);
-        out->shards_given = true;
-      } else if (run && TakeOption(args, &i, "--slurm-opt", &v)) {
-        SchedulerSetting setting;
-        if (!ParseSchedulerSetting(v, &setting))
-          return UsageError(command, "--slurm-opt expects [SELECTOR:]OPTION=VALUE, got '" + v + "'");
-        out->slurm_settings.push_back(setting);
-      } else if (run && args[i] == "--wait") {
-        out->wait = true;
-      } else if (run && TakeOption(args, &i, "--poll", &v)) {
-        int64_t n = 0;
-        if (!ParseInt(v, &n) || n < 1 || n > 3600)
-          return UsageError(command, "--poll expects seconds from 1 to 3600, got '" + v + "'");
-        out->poll_seconds = static_cast<double>(n);
-      } else if (run && TakeOption(args, &i, "--node", &v)) {
-        out->only_node = v;
-      } else if (run && TakeOption(args, &i, "--expect-key", &v)) {
-        out->expect_key = v;
-      } else if (args[i].rfind("-", 0) == 0) {
-        std::vector<std::string> known = {"--set", "--plugin-path", "--help"};
-        if (run)
-          known.insert(known.end(),
-                       {"--workspace", "--threads", "--force", "--shard", "--variant", "--executor",
-                        "--shards", "--slurm-opt", "--wait", "--poll", "--node", "--expect-key"});
-        const std::string hint = DidYouMean(args[i], known);
-        return UsageError(command, "unknown option '" + args[i] + "'" +
-                                       (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
-      } else if (out->graph.empty()) {
-        out->graph = args[i];
-      } else {
-        return UsageError(command, "unexpected argument '" + args[i] + "'");
-      }
+      int rc = TakeGraphOption(command, args, &i, out);
+      if (rc == kNotMine && run) rc = TakeLocalOption(command, args, &i, out);
+      if (rc == kNotMine && run) rc = TakeSlurmOption(command, args, &i, out);
+      if (rc == kNotMine) rc = TakeOther(command, args, i, run, out);
+      if (rc != -1) return rc;
     }
   } catch (const std::invalid_argument& e) {
     return UsageError(command, e.what());
   }
-  if (out->graph.empty()) return UsageError(command, "expected a graph file (GRAPH.yaml)");
-  if (run && out->workspace.empty()) return UsageError(command, "--workspace DIR is required");
-  if (out->force && out->shard_count > 1)
-    return UsageError(command, "--force cannot be combined with --shard (shards share progress)");
-  const bool slurm = out->executor == "slurm";
-  if (!slurm) {
-    for (const auto& [given, option] :
-         {std::pair{out->shards_given, "--shards"}, {!out->slurm_settings.empty(), "--slurm-opt"},
-          {out->wait, "--wait"}})
-      if (given)
-        return UsageError(command, std::string(option) + " needs --executor slurm");
-  } else {
-    if (out->shard_count > 1 || !out->only_node.empty())
-      return UsageError(command, "--executor slurm submits every node and shard itself: drop "
-                                 "--shard and --node");
-    if (out->force)
-      return UsageError(command, "--force cannot be combined with --executor slurm (remove the "
-                                 "nodes' folders from the workspace cache instead)");
-    if (out->threads > 0)
-      return UsageError(command, "with --executor slurm, threads follow each job's "
-                                 "cpus-per-task: use --slurm-opt cpus-per-task=N");
-  }
-  if (!out->expect_key.empty() && out->only_node.empty())
-    return UsageError(command, "--expect-key needs --node");
-  return -1;
+  return CheckCombinations(command, run, *out);
 }
 
 // Parses, loads plugins and validates every selected variant. Prints all
@@ -325,6 +359,65 @@ int ValidateCommand(const Args& args) {
   return 0;
 }
 
+ExecOptions LocalOptions(const GraphArgs& ga) {
+  ExecOptions options;
+  options.only_node = ga.only_node;
+  options.expect_key = ga.expect_key;
+  options.threads = ga.threads > 0
+                        ? ga.threads
+                        : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  options.force = ga.force;
+  options.shard_index = ga.shard_index;
+  options.shard_count = ga.shard_count;
+  options.cancel = &g_cancel;
+  return options;
+}
+
+// Runs the graph here; Ctrl-C (or SIGTERM) stops it cleanly between items.
+ExecResult RunHere(const std::vector<ResolvedGraph>& resolved, Workspace& workspace, Reporter& reporter,
+                   const ExecOptions& options) {
+  g_cancel.store(false);
+  std::signal(SIGINT, OnInterrupt);
+  std::signal(SIGTERM, OnInterrupt);
+  Executor executor(workspace, reporter, options);
+  ExecResult result;
+  try {
+    result = executor.Run(resolved);
+  } catch (const std::exception& e) {
+    result.failed = true;
+    result.failure = e.what();
+  }
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  return result;
+}
+
+// The timing table, the outputs and the log's path.
+void ReportRun(const ExecResult& result, bool matrix, const fs::path& log_file, Reporter& reporter) {
+  const std::string table = FormatTable(result, matrix);
+  std::cout << table;
+  reporter.FileOnly("\n" + table);
+  if (!result.outputs.empty()) {
+    std::cout << "outputs:\n";
+    for (const auto& o : result.outputs) std::cout << "  " << o << "\n";
+  }
+  std::cout << "log: " << log_file.string() << "\n";
+}
+
+// The exit code, with the failure or the sharded run's next step.
+int Conclude(const ExecResult& result, const GraphArgs& ga, Reporter& reporter) {
+  if (result.failed) {
+    reporter.Line("error: " + result.failure);
+    return 1;
+  }
+  if (result.waiting_for_shards) {
+    reporter.Line("shard " + std::to_string(ga.shard_index) + "/" + std::to_string(ga.shard_count) +
+                  " done; nodes downstream of sharded ones wait for the other shards. Run the "
+                  "remaining shards, then the same command without --shard to finish.");
+  }
+  return 0;
+}
+
 int RunCommand(const Args& args) {
   if (WantsHelp(args)) {
     std::cout << HelpText("run");
@@ -358,41 +451,11 @@ int RunCommand(const Args& args) {
 
   if (ga.executor == "slurm") return SubmitAndFollow(ga, resolved, graph_slurm, *workspace, reporter);
 
-  ExecOptions options;
-  options.only_node = ga.only_node;
-  options.expect_key = ga.expect_key;
-  options.threads = ga.threads > 0
-                        ? ga.threads
-                        : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  options.force = ga.force;
-  options.shard_index = ga.shard_index;
-  options.shard_count = ga.shard_count;
-  options.cancel = &g_cancel;
-  g_cancel.store(false);
-  std::signal(SIGINT, OnInterrupt);
-  std::signal(SIGTERM, OnInterrupt);
-  Executor executor(*workspace, reporter, options);
+  const ExecOptions options = LocalOptions(ga);
   const std::string started = UtcNow();
   const auto start_time = std::chrono::steady_clock::now();
-  ExecResult result;
-  try {
-    result = executor.Run(resolved);
-  } catch (const std::exception& e) {
-    result.failed = true;
-    result.failure = e.what();
-  }
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
-
-  const bool matrix = resolved.size() > 1 || !resolved.front().variant.empty();
-  const std::string table = FormatTable(result, matrix);
-  std::cout << table;
-  reporter.FileOnly("\n" + table);
-  if (!result.outputs.empty()) {
-    std::cout << "outputs:\n";
-    for (const auto& o : result.outputs) std::cout << "  " << o << "\n";
-  }
-  std::cout << "log: " << log_file.string() << "\n";
+  const ExecResult result = RunHere(resolved, *workspace, reporter, options);
+  ReportRun(result, resolved.size() > 1 || !resolved.front().variant.empty(), log_file, reporter);
   try {  // the record `locforge report` reads; a run does not fail for it
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
     WriteFileAtomic(RunRecordPath(log_file),
@@ -401,16 +464,7 @@ int RunCommand(const Args& args) {
   } catch (const std::exception& e) {
     reporter.Line("warning: cannot write the run record: " + std::string(e.what()));
   }
-  if (result.failed) {
-    reporter.Line("error: " + result.failure);
-    return 1;
-  }
-  if (result.waiting_for_shards) {
-    reporter.Line("shard " + std::to_string(ga.shard_index) + "/" + std::to_string(ga.shard_count) +
-                  " done; nodes downstream of sharded ones wait for the other shards. Run the "
-                  "remaining shards, then the same command without --shard to finish.");
-  }
-  return 0;
+  return Conclude(result, ga, reporter);
 }
 
 }  // namespace locforge::host

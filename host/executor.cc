@@ -157,37 +157,90 @@ std::vector<runtime::InputArtifact> Executor::Inputs(const ResolvedGraph& graph,
   return out;
 }
 
-Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& graph,
-                                 const ResolvedNode& node, const std::string& key,
-                                 const fs::path& dir, NodeReport* report, ExecResult* result) {
+namespace {
+
+// This shard's items are done (and, for the last one, finalized): its
+// record tells a re-submission to skip it and the manifest its cost.
+void RecordShard(const fs::path& partial, int index, int count, const runtime::RunResult& r,
+                 const NodeReport& report, const std::string& started) {
+  ShardRecord record;
+  record.index = index;
+  record.count = count;
+  record.items = r.items_total;
+  record.seconds = report.seconds;
+  record.cpu_seconds = report.cpu_seconds;
+  record.peak_rss_bytes = report.peak_rss_bytes;
+  char host[256] = {};
+  ::gethostname(host, sizeof(host) - 1);
+  record.host = host;
+  record.started = started;
+  record.finished = UtcNow();
+  WriteShardRecord(partial, record);
+}
+
+// The cost of a finished run; of a sharded one, the sum of the shards'
+// records (one that finished at the same moment as this one may not have
+// written its record yet: then it is not counted).
+host::Manifest RunCost(const runtime::RunResult& r, const NodeReport& report, const std::string& started,
+                       const fs::path& partial, bool sharded, int shard_count) {
+  host::Manifest m;
+  m.items = r.items_total;
+  m.seconds = report.seconds;
+  m.cpu_seconds = report.cpu_seconds;
+  m.peak_rss_bytes = report.peak_rss_bytes;
+  m.started = started;
+  if (!sharded) return m;
+  const auto records = ReadShardRecords(partial, shard_count);
+  if (records.empty()) return m;
+  m = {};
+  m.shards = static_cast<int>(records.size());
+  m.started = started;
+  for (const auto& rec : records) {
+    m.items += rec.items;
+    m.seconds += rec.seconds;
+    m.cpu_seconds += rec.cpu_seconds;
+    m.peak_rss_bytes = std::max(m.peak_rss_bytes, rec.peak_rss_bytes);
+    m.started = std::min(m.started, rec.started);
+  }
+  return m;
+}
+
+}  // namespace
+
+// Locks the node's folder (shards of one node run side by side; an unsharded
+// run waits for them) and prepares its partial folder: a Done when there is
+// nothing to run (complete meanwhile) or the folder cannot be prepared.
+std::optional<Executor::Done> Executor::LockNode(const std::string& label, const ResolvedNode& node,
+                                                 const fs::path& dir, std::optional<FileLock>* node_lock,
+                                                 std::optional<FileLock>* shard_lock, fs::path* partial,
+                                                 ExecResult* result) {
   const bool per_item = node.stage->per_item();
-  std::optional<FileLock> node_lock, shard_lock;
-  fs::path partial;
-  const auto inputs = Inputs(graph, node);
   try {
     if (per_item && options_.shard_count > 1) {
-      // Shards of one node run side by side; an unsharded run waits for them.
-      node_lock.emplace(workspace_.LockFile(dir, ".lock"), FileLock::kShared);
-      shard_lock.emplace(workspace_.LockFile(dir, ".shard-" + std::to_string(options_.shard_index) +
-                                                      "-of-" + std::to_string(options_.shard_count) +
-                                                      ".lock"),
-                         FileLock::kExclusive);
+      node_lock->emplace(workspace_.LockFile(dir, ".lock"), FileLock::kShared);
+      shard_lock->emplace(workspace_.LockFile(dir, ".shard-" + std::to_string(options_.shard_index) + "-of-" +
+                                                       std::to_string(options_.shard_count) + ".lock"),
+                          FileLock::kExclusive);
     } else {
-      node_lock.emplace(workspace_.LockFile(dir, ".lock"), FileLock::kExclusive);
+      node_lock->emplace(workspace_.LockFile(dir, ".lock"), FileLock::kExclusive);
     }
-    if (!options_.force && Workspace::IsComplete(dir)) return {"cached", dir};  // done meanwhile
-    partial = Workspace::PartialDir(dir, per_item);
+    if (!options_.force && Workspace::IsComplete(dir)) return Done{"cached", dir};  // done meanwhile
+    *partial = Workspace::PartialDir(dir, per_item);
     if (per_item) {
-      if (options_.force) fs::remove_all(partial);  // journals of an earlier run
+      if (options_.force) fs::remove_all(*partial);  // journals of an earlier run
     } else {
       Workspace::RemoveStalePartials(dir);
     }
   } catch (const std::exception& e) {
     result->failed = true;
     result->failure = "node '" + label + "' (" + node.stage->id + "): " + e.what();
-    return {"failed", {}};
+    return Done{"failed", {}};
   }
+  return std::nullopt;
+}
 
+runtime::RunOptions Executor::RunOptionsFor(const std::string& label, bool per_item, const fs::path& partial,
+                                            const std::vector<runtime::InputArtifact>& inputs) {
   runtime::RunOptions run;
   run.workspace = workspace_.root();
   run.output_dir = partial;
@@ -200,20 +253,23 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
   run.progress = [this, label](uint64_t done, uint64_t total, const std::string& what) {
     reporter_.Progress(label, done, total, what);
   };
+  return run;
+}
+
+Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& graph,
+                                 const ResolvedNode& node, const std::string& key,
+                                 const fs::path& dir, NodeReport* report, ExecResult* result) {
+  const bool per_item = node.stage->per_item();
+  std::optional<FileLock> node_lock, shard_lock;
+  fs::path partial;
+  const auto inputs = Inputs(graph, node);
+  if (const std::optional<Done> d = LockNode(label, node, dir, &node_lock, &shard_lock, &partial, result)) return *d;
+  const runtime::RunOptions run = RunOptionsFor(label, per_item, partial, inputs);
 
   reporter_.NodeStarted(label, node.stage->id);
   const auto start = std::chrono::steady_clock::now();
   const std::string started = UtcNow();
   const UsageMeter meter;
-  const bool sharded = per_item && options_.shard_count > 1;
-  // Shards running side by side may both see every item done and both
-  // finalize; the first to publish wins and the other one's result (or its
-  // error from the folder moving away) is moot.
-  auto published_by_another_shard = [&] {
-    if (!sharded) return false;
-    FileLock publish(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
-    return Workspace::IsComplete(dir);
-  };
   auto measure = [&] {
     report->seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -221,92 +277,75 @@ Executor::Done Executor::Compute(const std::string& label, const ResolvedGraph& 
     report->cpu_seconds = used.cpu_seconds;
     report->peak_rss_bytes = used.peak_rss_bytes;
   };
-  std::string status;
   try {
     runtime::StageInstance instance(*node.stage, node.params);
     const runtime::RunResult r = instance.Run(run);
     report->items = r.items_total;
     measure();
-    std::optional<FileLock> publish;
-    if (sharded) {
-      publish.emplace(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
-      if (Workspace::IsComplete(dir)) {
-        reporter_.NodeFinished(label, "ran (published by another shard)", r.items_total,
-                               report->seconds);
-        return {"ran", dir};
-      }
-      // This shard's items are done (and, for the last one, finalized): its
-      // record tells a re-submission to skip it and the manifest its cost.
-      ShardRecord record;
-      record.index = options_.shard_index;
-      record.count = options_.shard_count;
-      record.items = r.items_total;
-      record.seconds = report->seconds;
-      record.cpu_seconds = report->cpu_seconds;
-      record.peak_rss_bytes = report->peak_rss_bytes;
-      char host[256] = {};
-      ::gethostname(host, sizeof(host) - 1);
-      record.host = host;
-      record.started = started;
-      record.finished = UtcNow();
-      WriteShardRecord(partial, record);
-    }
-    if (!r.complete) {
-      result->waiting_for_shards = true;
-      reporter_.NodeFinished(label,
-                             "shard " + std::to_string(options_.shard_index) + "/" +
-                                 std::to_string(options_.shard_count) + " done",
-                             r.items_total, report->seconds);
-      return {"partial", {}};
-    }
-    host::Manifest m;
-    m.items = r.items_total;
-    m.seconds = report->seconds;
-    m.cpu_seconds = report->cpu_seconds;
-    m.peak_rss_bytes = report->peak_rss_bytes;
-    m.started = started;
-    if (sharded) {
-      // The shards' records (one that finished at the same moment as this
-      // one may not have written its record yet: then it is not counted).
-      const auto records = ReadShardRecords(partial, options_.shard_count);
-      if (!records.empty()) {
-        m = {};
-        m.shards = static_cast<int>(records.size());
-        m.started = started;
-        for (const auto& rec : records) {
-          m.items += rec.items;
-          m.seconds += rec.seconds;
-          m.cpu_seconds += rec.cpu_seconds;
-          m.peak_rss_bytes = std::max(m.peak_rss_bytes, rec.peak_rss_bytes);
-          m.started = std::min(m.started, rec.started);
-        }
-      }
-    }
-    m.output_bytes = OutputBytes(partial);
-    report->output_bytes = m.output_bytes;
-    RecordOutputFiles(partial, &m);
-    Publish(partial, dir, Manifest(node, key, inputs, m));
-    status = r.items_resumed > 0 ? "resumed" : "ran";
-    reporter_.NodeFinished(label, status, r.items_total, report->seconds);
-    return {status, dir};
+    return FinishRun(label, node, key, dir, partial, inputs, r, started, report, result);
   } catch (const std::exception& e) {
     measure();
-    if (published_by_another_shard()) {
-      reporter_.NodeFinished(label, "ran (published by another shard)", report->items,
-                             report->seconds);
+    return Failed(label, node, dir, partial, e.what(), *report, result);
+  }
+}
+
+// After the stage's run: this shard's record, or the node published with its
+// manifest (the shards' cost summed).
+Executor::Done Executor::FinishRun(const std::string& label, const ResolvedNode& node, const std::string& key,
+                                   const fs::path& dir, const fs::path& partial,
+                                   const std::vector<runtime::InputArtifact>& inputs, const runtime::RunResult& r,
+                                   const std::string& started, NodeReport* report, ExecResult* result) {
+  const bool sharded = node.stage->per_item() && options_.shard_count > 1;
+  std::optional<FileLock> publish;
+  if (sharded) {
+    publish.emplace(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
+    if (Workspace::IsComplete(dir)) {
+      reporter_.NodeFinished(label, "ran (published by another shard)", r.items_total, report->seconds);
       return {"ran", dir};
     }
-    const bool interrupted = IsCancelled(options_.cancel);
-    std::error_code ec;
-    if (!per_item) fs::remove_all(partial, ec);  // nothing to resume in a whole-stage run
-    result->failed = true;
-    result->failure = "node '" + label + "' (" + node.stage->id + ") " +
-                      (interrupted ? "interrupted" : std::string("failed: ") + e.what()) +
-                      (per_item ? "; finished items are kept, run again to resume" : "");
-    reporter_.NodeFinished(label, interrupted ? "interrupted" : "failed", report->items,
-                           report->seconds);
-    return {"failed", {}};
+    RecordShard(partial, options_.shard_index, options_.shard_count, r, *report, started);
   }
+  if (!r.complete) {
+    result->waiting_for_shards = true;
+    reporter_.NodeFinished(label,
+                           "shard " + std::to_string(options_.shard_index) + "/" +
+                               std::to_string(options_.shard_count) + " done",
+                           r.items_total, report->seconds);
+    return {"partial", {}};
+  }
+  host::Manifest m = RunCost(r, *report, started, partial, sharded, options_.shard_count);
+  m.output_bytes = OutputBytes(partial);
+  report->output_bytes = m.output_bytes;
+  RecordOutputFiles(partial, &m);
+  Publish(partial, dir, Manifest(node, key, inputs, m));
+  const std::string status = r.items_resumed > 0 ? "resumed" : "ran";
+  reporter_.NodeFinished(label, status, r.items_total, report->seconds);
+  return {status, dir};
+}
+
+// A failed or interrupted run. Shards running side by side may both see every
+// item done and both finalize; the first to publish wins and the other one's
+// result (or its error from the folder moving away) is moot.
+Executor::Done Executor::Failed(const std::string& label, const ResolvedNode& node, const fs::path& dir,
+                                const fs::path& partial, const std::string& what, const NodeReport& report,
+                                ExecResult* result) {
+  const bool per_item = node.stage->per_item();
+  if (per_item && options_.shard_count > 1) {
+    FileLock publish(workspace_.LockFile(dir, ".publish.lock"), FileLock::kExclusive);
+    if (Workspace::IsComplete(dir)) {
+      reporter_.NodeFinished(label, "ran (published by another shard)", report.items, report.seconds);
+      return {"ran", dir};
+    }
+  }
+  const bool interrupted = IsCancelled(options_.cancel);
+  std::error_code ec;
+  if (!per_item) fs::remove_all(partial, ec);  // nothing to resume in a whole-stage run
+  result->failed = true;
+  result->failure = "node '" + label + "' (" + node.stage->id + ") " +
+                    (interrupted ? "interrupted" : std::string("failed: ") + what) +
+                    (per_item ? "; finished items are kept, run again to resume" : "");
+  reporter_.NodeFinished(label, interrupted ? "interrupted" : "failed", report.items, report.seconds);
+  return {"failed", {}};
 }
 
 std::string Executor::Manifest(const ResolvedNode& node, const std::string& key,

@@ -5,6 +5,7 @@
 #define LOCFORGE_HOST_EXECUTOR_H_
 
 #include <atomic>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -65,6 +66,17 @@ class Executor {
                      ExecResult* result);
   Done Compute(const std::string& label, const ResolvedGraph& graph, const ResolvedNode& node,
                const std::string& key, const fs::path& dir, NodeReport* report, ExecResult* result);
+  // The steps of Compute.
+  std::optional<Done> LockNode(const std::string& label, const ResolvedNode& node, const fs::path& dir,
+                               std::optional<FileLock>* node_lock, std::optional<FileLock>* shard_lock,
+                               fs::path* partial, ExecResult* result);
+  runtime::RunOptions RunOptionsFor(const std::string& label, bool per_item, const fs::path& partial,
+                                    const std::vector<runtime::InputArtifact>& inputs);
+  Done FinishRun(const std::string& label, const ResolvedNode& node, const std::string& key, const fs::path& dir,
+                 const fs::path& partial, const std::vector<runtime::InputArtifact>& inputs,
+                 const runtime::RunResult& r, const std::string& started, NodeReport* report, ExecResult* result);
+  Done Failed(const std::string& label, const ResolvedNode& node, const fs::path& dir, const fs::path& partial,
+              const std::string& what, const NodeReport& report, ExecResult* result);
   std::vector<runtime::InputArtifact> Inputs(const ResolvedGraph& graph, const ResolvedNode& node);
   std::string Manifest(const ResolvedNode& node, const std::string& key,
                        const std::vector<runtime::InputArtifact>& inputs, host::Manifest m) const;

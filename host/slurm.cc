@@ -286,131 +286,181 @@ std::map<std::string, std::string> JobOptions(const ResolvedNode& node,
   return out;
 }
 
-Submission SubmitToSlurm(const Workspace& workspace, const std::vector<ResolvedGraph>& variants,
-                         const std::vector<SchedulerSetting>& graph_settings,
-                         const SlurmOptions& options, Reporter& reporter) {
-  std::string why;
-  if (!options.Check(&why)) throw Error("slurm: " + why);
+namespace {
+
+// The workspace's slurm/ folder with the job script (rewritten only when it
+// changed), and logs/slurm/.
+fs::path PrepareSlurmFolders(const Workspace& workspace) {
   const fs::path slurm_dir = workspace.root() / "slurm";
-  const fs::path log_dir = workspace.root() / "logs" / "slurm";
   fs::create_directories(slurm_dir);
-  fs::create_directories(log_dir);
+  fs::create_directories(workspace.root() / "logs" / "slurm");
   const fs::path script = slurm_dir / "job.sh";
   if (!fs::exists(script) || ReadFile(script) != kJobScript) {
     WriteFileAtomic(script, kJobScript);
     fs::permissions(script, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
                                 fs::perms::others_read | fs::perms::others_exec);
   }
+  return slurm_dir;
+}
+
+// A new submission-<UTC time>[-N].tsv in slurm_dir.
+fs::path NewRecordPath(const fs::path& slurm_dir) {
   const std::string stamp = UtcNow(true);
   fs::path record = slurm_dir / ("submission-" + stamp + ".tsv");
   for (int i = 1; fs::exists(record); ++i)
     record = slurm_dir / ("submission-" + stamp + "-" + std::to_string(i) + ".tsv");
+  return record;
+}
 
+// The submission record (and slurm/latest pointing to it).
+void WriteRecord(const Submission& sub) {
+  std::string text = "# locforge Slurm submission: job\tvariant\tnode\tstage\tkey16\tshards\tarray\tlog\tafter\n";
+  for (const auto& j : sub.jobs)
+    text += j.job_id + "\t" + j.variant + "\t" + j.node + "\t" + j.stage + "\t" + j.key16 + "\t" +
+            std::to_string(j.shards) + "\t" + (j.array.empty() ? "-" : j.array) + "\t" +
+            (j.log.empty() ? "-" : j.log) + "\t" + (j.after.empty() ? "-" : j.after) + "\n";
+  WriteFileAtomic(sub.file, text);
+  WriteFileAtomic(sub.file.parent_path() / "latest", sub.file.filename().string() + "\n");
+}
+
+// The shards of a per-item node still to run: those that left no record
+// (shards that finished their items are not run again). All done but not
+// published (killed while finalizing): none, and one job without --shard
+// resumes every item from the journals and finalizes.
+std::vector<int> ShardsToRun(const fs::path& dir, int shards, int* job_shards) {
+  std::vector<int> indices;
+  const auto records = ReadShardRecords(Workspace::PartialDir(dir, true), shards);
+  std::set<int> done;
+  for (const auto& r : records) done.insert(r.index);
+  for (int i = 0; i < shards; ++i)
+    if (!done.count(i)) indices.push_back(i);
+  if (!indices.empty()) *job_shards = shards;
+  return indices;
+}
+
+// sbatch's command line for a node's job: the job script running
+// `locforge run GRAPH --node NODE` (with its shard of an array).
+std::vector<std::string> SbatchCommand(const SlurmJob& job, const std::set<std::string>& after,
+                                       const std::map<std::string, std::string>& opts, const fs::path& script,
+                                       const SlurmOptions& options, const Workspace& workspace) {
+  std::vector<std::string> argv = {"sbatch", "--parsable", "--job-name=lf-" + job.node,
+                                   "--output=" + job.log, "--chdir=" + options.cwd.string(),
+                                   "--kill-on-invalid-dep=yes"};
+  if (!after.empty()) argv.push_back("--dependency=afterok:" + Join({after.begin(), after.end()}, ":"));
+  if (job.shards > 1) argv.push_back("--array=" + job.array);
+  for (const auto& [k, v] : opts) argv.push_back("--" + k + "=" + v);
+  argv.push_back(script.string());
+  argv.insert(argv.end(), {options.locforge.string(), "run", options.graph.string(),
+                           "--workspace", workspace.root().string()});
+  argv.insert(argv.end(), options.forward.begin(), options.forward.end());
+  if (!job.variant.empty()) argv.insert(argv.end(), {"--variant", job.variant});
+  const auto cpus = opts.find("cpus-per-task");
+  argv.insert(argv.end(), {"--node", job.node, "--expect-key", job.key16, "--threads",
+                           cpus == opts.end() ? "1" : cpus->second});
+  if (job.shards > 1) argv.insert(argv.end(), {"--shard", "array/" + std::to_string(job.shards)});
+  return argv;
+}
+
+// Runs sbatch: the job id; on failure the record of the jobs so far is
+// written and the error says why.
+std::string RunSbatch(const std::vector<std::string>& argv, const std::string& node, const Submission& sub,
+                      Reporter& reporter) {
+  reporter.FileOnly("+ " + DisplayCommand(argv));
+  const ProcessResult r = RunProcess(argv, 300);
+  std::string id = r.out.substr(0, r.out.find_first_of(";\n"));
+  if (r.ok() && !id.empty() && id.find_first_not_of("0123456789") == std::string::npos) return id;
+  WriteRecord(sub);
+  std::string msg = r.error;
+  std::string err = r.err;
+  while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
+  if (!err.empty()) msg += (msg.empty() ? "" : "; ") + err;
+  if (msg.empty()) msg = "unexpected output '" + r.out + "'";
+  throw Error("slurm: submitting node '" + node + "' failed: " + msg +
+              (r.started ? "" : " (is this a Slurm submit host? sbatch must be on PATH)") +
+              (sub.jobs.empty() ? "" : "; jobs submitted so far are listed in " + sub.file.string()));
+}
+
+// One submission: the jobs so far, and the job computing each cache key.
+struct Submitter {
+  const Workspace& workspace;
+  const std::vector<SchedulerSetting>& graph_settings;
+  const SlurmOptions& options;
+  Reporter& reporter;
+  fs::path slurm_dir;
   Submission sub;
-  sub.file = record;
-  auto write_record = [&] {
-    std::string text =
-        "# locforge Slurm submission: job\tvariant\tnode\tstage\tkey16\tshards\tarray\tlog\tafter\n";
-    for (const auto& j : sub.jobs)
-      text += j.job_id + "\t" + j.variant + "\t" + j.node + "\t" + j.stage + "\t" + j.key16 + "\t" +
-              std::to_string(j.shards) + "\t" + (j.array.empty() ? "-" : j.array) + "\t" +
-              (j.log.empty() ? "-" : j.log) + "\t" + (j.after.empty() ? "-" : j.after) + "\n";
-    WriteFileAtomic(record, text);
-    WriteFileAtomic(slurm_dir / "latest", record.filename().string() + "\n");
-  };
-
   std::map<std::string, std::string> job_of_key;  // key -> job id ("-" when complete)
+
+  // A node's line: the job of the same node in an earlier variant (one job
+  // computes it for both), "-" when complete, or a new job.
+  void Node(const ResolvedGraph& graph, const ResolvedNode& node, const std::map<std::string, std::string>& keys) {
+    const std::string& key = keys.at(node.name);
+    SlurmJob job;
+    job.variant = graph.variant;
+    job.node = node.name;
+    job.stage = node.stage->id;
+    job.key16 = key.substr(0, 16);
+    if (auto known = job_of_key.find(key); known != job_of_key.end()) {
+      job.job_id = known->second;
+      sub.jobs.push_back(job);
+      return;
+    }
+    const fs::path dir = workspace.NodeDir(node.name, key);
+    const std::string label = (graph.variant.empty() ? "" : graph.variant + "/") + node.name;
+    if (ServableFromCache(workspace, label, dir, reporter)) {
+      job.job_id = "-";
+      job_of_key[key] = "-";
+      workspace.Link(graph.variant, node.name, dir);
+      sub.jobs.push_back(job);
+      return;
+    }
+    Submit(node, dir, keys, &job);
+  }
+
+  void Submit(const ResolvedNode& node, const fs::path& dir, const std::map<std::string, std::string>& keys,
+              SlurmJob* job) {
+    const auto opts = JobOptions(node, graph_settings, options.settings);
+    std::vector<int> indices;
+    if (node.stage->per_item() && options.shards > 1) indices = ShardsToRun(dir, options.shards, &job->shards);
+    std::set<std::string> after;
+    for (const auto& in : node.inputs) {
+      const std::string& id = job_of_key.at(keys.at(in.node));
+      if (id != "-") after.insert(id);
+    }
+    job->after = Join({after.begin(), after.end()}, ",");
+    job->array = job->shards > 1 ? ArraySpec(indices) : "";
+    const fs::path log_dir = workspace.root() / "logs" / "slurm";
+    job->log = (log_dir / (node.name + (job->shards > 1 ? "-%A_%a.log" : "-%j.log"))).string();
+    const std::string id = RunSbatch(
+        SbatchCommand(*job, after, opts, slurm_dir / "job.sh", options, workspace), node.name, sub, reporter);
+    job->job_id = id;
+    job_of_key[keys.at(node.name)] = id;
+    sub.jobs.push_back(*job);
+    reporter.Line("submitted " + (job->variant.empty() ? "" : job->variant + "/") + node.name + ": job " + id +
+                  (job->shards > 1 ? " (array " + job->array + " of " + std::to_string(job->shards) + " shards)"
+                                   : "") +
+                  (after.empty() ? "" : ", after " + job->after));
+  }
+};
+
+}  // namespace
+
+Submission SubmitToSlurm(const Workspace& workspace, const std::vector<ResolvedGraph>& variants,
+                         const std::vector<SchedulerSetting>& graph_settings,
+                         const SlurmOptions& options, Reporter& reporter) {
+  std::string why;
+  if (!options.Check(&why)) throw Error("slurm: " + why);
+  Submitter s{workspace, graph_settings, options, reporter, PrepareSlurmFolders(workspace)};
+  s.sub.file = NewRecordPath(s.slurm_dir);
   for (const auto& graph : variants) {
     std::map<std::string, std::string> keys;
     for (const auto& node : graph.nodes) {
       const std::string key = CacheKey(node, keys);
       keys[node.name] = key;
-      SlurmJob job;
-      job.variant = graph.variant;
-      job.node = node.name;
-      job.stage = node.stage->id;
-      job.key16 = key.substr(0, 16);
-      if (auto known = job_of_key.find(key); known != job_of_key.end()) {
-        // The same node in an earlier variant: one job computes it for both.
-        job.job_id = known->second;
-        sub.jobs.push_back(job);
-        continue;
-      }
-      const fs::path dir = workspace.NodeDir(node.name, key);
-      const std::string label = (graph.variant.empty() ? "" : graph.variant + "/") + node.name;
-      if (ServableFromCache(workspace, label, dir, reporter)) {
-        job.job_id = "-";
-        job_of_key[key] = "-";
-        workspace.Link(graph.variant, node.name, dir);
-        sub.jobs.push_back(job);
-        continue;
-      }
-      const auto opts = JobOptions(node, graph_settings, options.settings);
-      std::vector<int> indices;
-      if (node.stage->per_item() && options.shards > 1) {
-        // Shards that finished their items left a record: not again.
-        const auto records =
-            ReadShardRecords(Workspace::PartialDir(dir, true), options.shards);
-        std::set<int> done;
-        for (const auto& r : records) done.insert(r.index);
-        for (int i = 0; i < options.shards; ++i)
-          if (!done.count(i)) indices.push_back(i);
-        // All done but not published (killed while finalizing): one job
-        // without --shard resumes every item from the journals and finalizes.
-        if (!indices.empty()) job.shards = options.shards;
-      }
-      std::set<std::string> after;
-      for (const auto& in : node.inputs) {
-        const std::string& id = job_of_key.at(keys.at(in.node));
-        if (id != "-") after.insert(id);
-      }
-      job.after = Join({after.begin(), after.end()}, ",");
-      job.array = job.shards > 1 ? ArraySpec(indices) : "";
-      job.log = (log_dir / (node.name + (job.shards > 1 ? "-%A_%a.log" : "-%j.log"))).string();
-
-      std::vector<std::string> argv = {"sbatch", "--parsable", "--job-name=lf-" + node.name,
-                                       "--output=" + job.log, "--chdir=" + options.cwd.string(),
-                                       "--kill-on-invalid-dep=yes"};
-      if (!after.empty()) argv.push_back("--dependency=afterok:" + Join({after.begin(), after.end()}, ":"));
-      if (job.shards > 1) argv.push_back("--array=" + job.array);
-      for (const auto& [k, v] : opts) argv.push_back("--" + k + "=" + v);
-      argv.push_back(script.string());
-      argv.insert(argv.end(), {options.locforge.string(), "run", options.graph.string(),
-                               "--workspace", workspace.root().string()});
-      argv.insert(argv.end(), options.forward.begin(), options.forward.end());
-      if (!graph.variant.empty()) argv.insert(argv.end(), {"--variant", graph.variant});
-      const auto cpus = opts.find("cpus-per-task");
-      argv.insert(argv.end(), {"--node", node.name, "--expect-key", job.key16, "--threads",
-                               cpus == opts.end() ? "1" : cpus->second});
-      if (job.shards > 1) argv.insert(argv.end(), {"--shard", "array/" + std::to_string(job.shards)});
-
-      reporter.FileOnly("+ " + DisplayCommand(argv));
-      const ProcessResult r = RunProcess(argv, 300);
-      std::string id = r.out.substr(0, r.out.find_first_of(";\n"));
-      if (!r.ok() || id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
-        write_record();
-        std::string msg = r.error;
-        std::string err = r.err;
-        while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
-        if (!err.empty()) msg += (msg.empty() ? "" : "; ") + err;
-        if (msg.empty()) msg = "unexpected output '" + r.out + "'";
-        throw Error("slurm: submitting node '" + node.name + "' failed: " + msg +
-                    (r.started ? "" : " (is this a Slurm submit host? sbatch must be on PATH)") +
-                    (sub.jobs.empty() ? "" : "; jobs submitted so far are listed in " +
-                                                 record.string()));
-      }
-      job.job_id = id;
-      job_of_key[key] = id;
-      sub.jobs.push_back(job);
-      reporter.Line("submitted " + (graph.variant.empty() ? "" : graph.variant + "/") + node.name +
-                    ": job " + id + (job.shards > 1 ? " (array " + job.array + " of " +
-                                                          std::to_string(job.shards) + " shards)"
-                                                    : "") +
-                    (after.empty() ? "" : ", after " + job.after));
+      s.Node(graph, node, keys);
     }
   }
-  write_record();
-  return sub;
+  WriteRecord(s.sub);
+  return s.sub;
 }
 
 Submission ReadSubmission(const fs::path& file) {
@@ -456,6 +506,127 @@ Submission ReadLatestSubmission(const Workspace& workspace) {
   return ReadSubmission(workspace.root() / "slurm" / name);
 }
 
+namespace {
+
+// A line whose node is complete (done, or cached at submission), or whose
+// node was complete at submission and is gone: its state; false otherwise.
+bool SettledState(const SlurmJob& j, const fs::path& dir, NodeState* s) {
+  if (Workspace::IsComplete(dir)) {
+    s->state = j.job_id == "-" ? "cached" : "done";
+    s->terminal = true;
+    try {
+      s->manifest = ReadManifest(dir);
+      s->has_manifest = true;
+    } catch (const std::exception&) {
+    }
+    return true;
+  }
+  if (j.job_id != "-") return false;
+  s->state = "lost";
+  s->detail = "complete at submission, now missing: submit again";
+  s->terminal = true;
+  return true;
+}
+
+// Tasks of a line: one job, or the submitted shards of an array: (state key, shard label).
+std::vector<std::pair<std::string, std::string>> TasksOf(const SlurmJob& j) {
+  std::vector<std::pair<std::string, std::string>> tasks;
+  if (j.shards > 1) {
+    for (int i : ParseArraySpec(j.array))
+      tasks.push_back({j.job_id + "_" + std::to_string(i), std::to_string(i) + "/" + std::to_string(j.shards)});
+  } else {
+    tasks.push_back({j.job_id, ""});
+  }
+  return tasks;
+}
+
+struct TaskCounts {
+  int running = 0, pending = 0, done = 0, failed = 0, blocked = 0;
+  std::string reason;  // why the first pending task waits
+};
+
+// One task's Slurm state counted (recorded: the shards that left a record).
+void CountTask(const SlurmJob& j, const std::string& key, const std::string& shard,
+               const std::map<std::string, TaskState>& states, const std::set<int>& recorded, TaskCounts* c,
+               NodeState* s) {
+  auto st = states.find(key);
+  // A pending array not yet split into tasks is listed under its id.
+  if (st == states.end() && j.shards > 1) st = states.find(j.job_id + "_" + j.array);
+  std::string state = st == states.end() ? "" : st->second.state;
+  const std::string why = st == states.end() ? "" : st->second.reason;
+  const int index = shard.empty() ? -1 : std::stoi(shard);
+  if (state.empty()) {
+    // Gone from the controller and no accounting: the workspace decides.
+    state = (index >= 0 && recorded.count(index)) ? "COMPLETED" : "UNKNOWN";
+  }
+  const std::string label = "node '" + (j.variant.empty() ? "" : j.variant + "/") + j.node + "'" +
+                            (shard.empty() ? "" : " shard " + shard) + " (job " + key + ")";
+  if (IsActive(state)) {
+    if (state == "PENDING" && why.find("DependencyNeverSatisfied") != std::string::npos) {
+      ++c->blocked;
+      s->active_ids.push_back(key);
+      return;
+    }
+    (state == "PENDING" ? c->pending : c->running)++;
+    if (state == "PENDING" && c->reason.empty()) c->reason = why;
+    s->active_ids.push_back(key);
+  } else if (state == "COMPLETED") {
+    if (index >= 0 && !recorded.count(index)) {
+      ++c->failed;
+      s->failures.push_back(label + " completed without finishing its items; log: " +
+                            TaskLog(j, index >= 0 ? std::to_string(index) : ""));
+    } else {
+      ++c->done;
+    }
+  } else if (state == "CANCELLED" && (why.find("Dependency") != std::string::npos)) {
+    ++c->blocked;
+  } else {
+    ++c->failed;
+    s->failures.push_back(label + " " +
+                          (state == "UNKNOWN" ? "ended (no longer known to Slurm) without finishing" : state) +
+                          "; log: " + TaskLog(j, index >= 0 ? std::to_string(index) : ""));
+  }
+}
+
+// The line's state from its tasks' counts (n tasks; input_failed: a job it
+// waits on failed, so Slurm cancels it: kill-on-invalid-dep).
+void DecideState(const SlurmJob& j, const fs::path& dir, const TaskCounts& c, int n, bool input_failed,
+                 NodeState* s) {
+  const bool active = c.running + c.pending > 0;
+  if (c.failed > 0) {
+    s->state = "failed";
+  } else if (input_failed && c.done < n) {
+    s->state = "blocked";
+    s->detail = "an input failed";
+  } else if (c.blocked > 0 && !active) {
+    s->state = "blocked";
+    s->detail = "an input failed";
+  } else if (c.running > 0) {
+    s->state = "running";
+  } else if (c.pending > 0) {
+    s->state = "pending";
+    s->detail = c.reason;
+  } else if (c.done == n) {
+    // Every job ended well but the node is not complete: lost output.
+    s->state = "failed";
+    s->failures.push_back("node '" + j.node + "': its jobs completed but " + dir.string() +
+                          " is not complete; log: " + TaskLog(j, j.shards > 1 ? "*" : ""));
+  } else {
+    s->state = "failed";
+  }
+  if (j.shards > 1) {
+    std::string d = std::to_string(c.done + (j.shards - n)) + "/" + std::to_string(j.shards) + " shards done";
+    if (c.running) d += ", " + std::to_string(c.running) + " running";
+    if (c.pending) d += ", " + std::to_string(c.pending) + " pending";
+    if (c.failed) d += ", " + std::to_string(c.failed) + " failed";
+    s->detail = s->detail.empty() ? d : d + "; " + s->detail;
+  }
+  // Blocked jobs never start: they are cancelled, not waited for.
+  s->terminal = c.running == 0 && (c.pending == 0 || s->state == "blocked");
+}
+
+}  // namespace
+
 std::vector<NodeState> QuerySlurmStatus(const Workspace& workspace, const Submission& sub) {
   std::set<std::string> ids;
   for (const auto& j : sub.jobs)
@@ -469,120 +640,22 @@ std::vector<NodeState> QuerySlurmStatus(const Workspace& workspace, const Submis
     NodeState s;
     s.job = j;
     const fs::path dir = workspace.root() / "cache" / (j.node + "-" + j.key16);
-    if (Workspace::IsComplete(dir)) {
-      s.state = j.job_id == "-" ? "cached" : "done";
-      s.terminal = true;
-      try {
-        s.manifest = ReadManifest(dir);
-        s.has_manifest = true;
-      } catch (const std::exception&) {
-      }
+    if (SettledState(j, dir, &s)) {
       out.push_back(s);
       continue;
     }
-    if (j.job_id == "-") {
-      s.state = "lost";
-      s.detail = "complete at submission, now missing: submit again";
-      s.terminal = true;
-      out.push_back(s);
-      continue;
-    }
-    // Tasks of this line: one job, or the submitted shards of an array.
-    std::vector<std::pair<std::string, std::string>> tasks;  // (state key, shard label)
-    const auto records =
-        j.shards > 1 ? ReadShardRecords(fs::path(dir.string() + ".partial"), j.shards)
-                     : std::vector<ShardRecord>{};
+    const std::vector<std::pair<std::string, std::string>> tasks = TasksOf(j);
+    const auto records = j.shards > 1 ? ReadShardRecords(fs::path(dir.string() + ".partial"), j.shards)
+                                      : std::vector<ShardRecord>{};
     std::set<int> recorded;
     for (const auto& r : records) recorded.insert(r.index);
-    if (j.shards > 1) {
-      for (int i : ParseArraySpec(j.array))
-        tasks.push_back({j.job_id + "_" + std::to_string(i),
-                         std::to_string(i) + "/" + std::to_string(j.shards)});
-    } else {
-      tasks.push_back({j.job_id, ""});
-    }
-    int running = 0, pending = 0, done = 0, failed = 0, blocked = 0;
-    std::string reason;
-    for (const auto& [key, shard] : tasks) {
-      auto st = states.find(key);
-      // A pending array not yet split into tasks is listed under its id.
-      if (st == states.end() && j.shards > 1) st = states.find(j.job_id + "_" + j.array);
-      std::string state = st == states.end() ? "" : st->second.state;
-      const std::string why = st == states.end() ? "" : st->second.reason;
-      const int index = shard.empty() ? -1 : std::stoi(shard);
-      if (state.empty()) {
-        // Gone from the controller and no accounting: the workspace decides.
-        state = (index >= 0 && recorded.count(index)) ? "COMPLETED" : "UNKNOWN";
-      }
-      const std::string label =
-          "node '" + (j.variant.empty() ? "" : j.variant + "/") + j.node + "'" +
-          (shard.empty() ? "" : " shard " + shard) + " (job " + key + ")";
-      if (IsActive(state)) {
-        if (state == "PENDING" && why.find("DependencyNeverSatisfied") != std::string::npos) {
-          ++blocked;
-          s.active_ids.push_back(key);
-          continue;
-        }
-        (state == "PENDING" ? pending : running)++;
-        if (state == "PENDING" && reason.empty()) reason = why;
-        s.active_ids.push_back(key);
-      } else if (state == "COMPLETED") {
-        if (index >= 0 && !recorded.count(index)) {
-          ++failed;
-          s.failures.push_back(label + " completed without finishing its items; log: " +
-                               TaskLog(j, index >= 0 ? std::to_string(index) : ""));
-        } else {
-          ++done;
-        }
-      } else if (state == "CANCELLED" && (why.find("Dependency") != std::string::npos)) {
-        ++blocked;
-      } else {
-        ++failed;
-        s.failures.push_back(label + " " +
-                             (state == "UNKNOWN" ? "ended (no longer known to Slurm) without "
-                                                   "finishing"
-                                                 : state) +
-                             "; log: " + TaskLog(j, index >= 0 ? std::to_string(index) : ""));
-      }
-    }
-    // Waiting on a job that failed: Slurm cancels it (kill-on-invalid-dep).
+    TaskCounts counts;
+    for (const auto& [key, shard] : tasks) CountTask(j, key, shard, states, recorded, &counts, &s);
     bool input_failed = false;
     for (const auto& a : Split(j.after, ','))
       if (auto it = by_id.find(a); it != by_id.end())
         input_failed |= out[it->second].state == "failed" || out[it->second].state == "blocked";
-    const int n = static_cast<int>(tasks.size());
-    const bool active = running + pending > 0;
-    if (failed > 0) {
-      s.state = "failed";
-    } else if (input_failed && done < n) {
-      s.state = "blocked";
-      s.detail = "an input failed";
-    } else if (blocked > 0 && !active) {
-      s.state = "blocked";
-      s.detail = "an input failed";
-    } else if (running > 0) {
-      s.state = "running";
-    } else if (pending > 0) {
-      s.state = "pending";
-      s.detail = reason;
-    } else if (done == n) {
-      // Every job ended well but the node is not complete: lost output.
-      s.state = "failed";
-      s.failures.push_back("node '" + j.node + "': its jobs completed but " + dir.string() +
-                           " is not complete; log: " + TaskLog(j, j.shards > 1 ? "*" : ""));
-    } else {
-      s.state = "failed";
-    }
-    if (j.shards > 1) {
-      std::string d = std::to_string(done + (j.shards - n)) + "/" + std::to_string(j.shards) +
-                      " shards done";
-      if (running) d += ", " + std::to_string(running) + " running";
-      if (pending) d += ", " + std::to_string(pending) + " pending";
-      if (failed) d += ", " + std::to_string(failed) + " failed";
-      s.detail = s.detail.empty() ? d : d + "; " + s.detail;
-    }
-    // Blocked jobs never start: they are cancelled, not waited for.
-    s.terminal = running == 0 && (pending == 0 || s.state == "blocked");
+    DecideState(j, dir, counts, static_cast<int>(tasks.size()), input_failed, &s);
     by_id[j.job_id] = out.size();
     out.push_back(s);
   }

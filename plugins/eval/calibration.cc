@@ -121,13 +121,138 @@ Sim3Alignment AlignSim3(const std::vector<Pose>& est, const std::vector<Pose>& r
   return a;
 }
 
+namespace {
+
+// The reference's sensors, rigs and camera poses.
+struct Reference {
+  kp::Sensors sensors;
+  kp::Rigs rigs;
+  kp::Trajectories traj;
+};
+
+// A camera pose with a reference pose at the same (timestamp, device).
+struct PosePair {
+  std::string device;
+  Pose est, ref;
+};
+
+std::vector<PosePair> PosePairs(const fs::path& input, const kp::Sensors& sensors, const Reference& reference,
+                                const std::string& reference_name) {
+  const kp::Trajectories traj = kp::ReadTrajectories(input / kp::layout::kTrajectories);
+  std::vector<PosePair> pairs;
+  for (const auto& [key, pose] : traj.poses) {
+    const kp::Sensor* s = sensors.Find(key.second);
+    if (!s || !s->IsCamera()) continue;
+    const Pose* ref = reference.traj.Find(key.first, key.second);
+    if (ref) pairs.push_back({key.second, pose, *ref});
+  }
+  if (pairs.empty())
+    throw InputError((input / kp::layout::kTrajectories).string(), 0, "trajectories",
+                     "no camera pose shares a (timestamp, device) with " + reference_name);
+  return pairs;
+}
+
+// Each pose's position and rotation errors after the SE(3) alignment
+// T_ref_est, without alignment and after the Sim(3) one, by group and by camera.
+void AddPoseErrors(const std::vector<PosePair>& pairs, const Pose& T_ref_est, const Sim3Alignment& sim3,
+                   const CameraGroups& groups, std::map<std::string, Metrics>* metrics,
+                   std::map<std::string, Metrics>* camera_poses) {
+  for (const auto& p : pairs) {
+    const Pose est = p.est * T_ref_est.Inverse();  // T_C_refworld
+    const double dp = (est.Center() - p.ref.Center()).norm();
+    const double dr = RotationAngleDeg(est.q, p.ref.q);
+    const double dp_raw = (p.est.Center() - p.ref.Center()).norm();
+    const double dp_sim3 = (sim3.scale * sim3.R * p.est.Center() + sim3.t - p.ref.Center()).norm();
+    for (const std::string& g : {groups.Of(p.device), std::string("all")}) {
+      (*metrics)[g].position_m.Add(dp);
+      (*metrics)[g].rotation_deg.Add(dr);
+      (*metrics)[g].position_raw_m.Add(dp_raw);
+      (*metrics)[g].position_sim3_m.Add(dp_sim3);
+    }
+    (*camera_poses)[p.device].position_m.Add(dp);
+    (*camera_poses)[p.device].rotation_deg.Add(dr);
+  }
+}
+
+// Each camera's intrinsics and rotation to the rig against the reference's:
+// into the group metrics and one row of the per-camera table.
+void AddCameraErrors(const std::string& label, const kp::Sensors& sensors, const kp::Rigs& rigs,
+                     const Reference& reference, const CameraGroups& groups,
+                     std::map<std::string, Metrics>* metrics, std::map<std::string, Metrics>& camera_poses,
+                     TextTable* per_camera) {
+  for (const kp::Sensor& s : sensors.list()) {
+    if (!s.IsCamera() || !s.camera) continue;
+    const kp::Sensor* r = reference.sensors.Find(s.id);
+    if (!r || !r->camera) continue;
+    const double fe = 100.0 * (0.5 * (s.camera->fx() / r->camera->fx() + s.camera->fy() / r->camera->fy()) - 1.0);
+    const double ppe = std::hypot(s.camera->cx() - r->camera->cx(), s.camera->cy() - r->camera->cy());
+    double rot = std::nan("");
+    const kp::Rig* rig = rigs.RigOf(s.id);
+    const kp::Rig* ref_rig = reference.rigs.RigOf(s.id);
+    if (rig && ref_rig)
+      rot = RotationAngleDeg(rig->Find(s.id)->sensor_from_rig.q, ref_rig->Find(s.id)->sensor_from_rig.q);
+    const std::string g = groups.Of(s.id);
+    for (const std::string& k : {g, std::string("all")}) {
+      Metrics& m = (*metrics)[k];
+      ++m.cameras;
+      m.focal_percent.Add(fe);
+      m.principal_point_px.Add(ppe);
+      if (!std::isnan(rot)) m.camera_rotation_deg.Add(rot);
+    }
+    const Metrics& cp = camera_poses[s.id];
+    per_camera->rows.push_back({label, s.id, g, Fixed(fe, 3), Fixed(ppe, 2), std::isnan(rot) ? "-" : Fixed(rot, 3),
+                                std::to_string(cp.position_m.n), Fixed(100 * cp.position_m.Rms(), 2),
+                                Fixed(cp.rotation_deg.Rms(), 3)});
+  }
+}
+
+// One row per group with poses or cameras, then "all".
+void AddGroupRows(const std::string& label, const std::vector<std::string>& group_names,
+                  std::map<std::string, Metrics>& metrics, const Sim3Alignment& sim3, TextTable* table) {
+  for (const std::string& g : group_names) {
+    const Metrics& m = metrics[g];
+    if (!m.position_m.n && !m.cameras) continue;
+    table->rows.push_back({label + (g == "all" ? "" : " / " + g), std::to_string(m.cameras),
+                           std::to_string(m.position_m.n), Fixed(100 * m.position_m.Rms(), 2),
+                           Fixed(m.rotation_deg.Rms(), 3), Fixed(100 * m.position_raw_m.Rms(), 2),
+                           Fixed(100 * m.position_sim3_m.Rms(), 2), Fixed(100 * (sim3.scale - 1), 3),
+                           Fixed(m.focal_percent.Rms(), 3),
+                           Fixed(m.focal_percent.max, 3), Fixed(m.principal_point_px.Rms(), 2),
+                           Fixed(m.camera_rotation_deg.Rms(), 3), Fixed(m.camera_rotation_deg.max, 3)});
+  }
+}
+
+// One estimate's rows of both tables.
+void EvaluateEstimate(const std::string& label, const fs::path& input, const Reference& reference,
+                      const CalibrationEvalOptions& o, const CameraGroups& groups,
+                      const std::vector<std::string>& group_names, TextTable* table, TextTable* per_camera) {
+  const kp::Sensors sensors = kp::ReadSensors(input / kp::layout::kSensors);
+  const kp::Rigs rigs = fs::exists(input / kp::layout::kRigs) ? kp::ReadRigs(input / kp::layout::kRigs) : kp::Rigs();
+  const std::vector<PosePair> pairs = PosePairs(input, sensors, reference, o.reference);
+  Pose T_ref_est;
+  std::vector<Pose> a, b;
+  for (const auto& p : pairs) {
+    a.push_back(p.est);
+    b.push_back(p.ref);
+  }
+  if (o.alignment == "se3") T_ref_est = AlignPoses(a, b);
+  const Sim3Alignment sim3 = AlignSim3(a, b);
+  std::map<std::string, Metrics> metrics;       // group -> metrics
+  std::map<std::string, Metrics> camera_poses;  // camera -> pose metrics
+  AddPoseErrors(pairs, T_ref_est, sim3, groups, &metrics, &camera_poses);
+  AddCameraErrors(label, sensors, rigs, reference, groups, &metrics, camera_poses, per_camera);
+  AddGroupRows(label, group_names, metrics, sim3, table);
+}
+
+}  // namespace
+
 void CalibrationEvalStage::Run(RunContext& ctx) {
   const auto& o = options();
   const CameraGroups groups = CameraGroups::Parse(o.groups);
   const fs::path ref_root = ctx.PathOrInput("eval/calibration", "reference", o.reference, "reference");
-  const kp::Sensors ref_sensors = kp::ReadSensors(ref_root / kp::layout::kSensors);
-  const kp::Rigs ref_rigs = kp::ReadRigs(ref_root / kp::layout::kRigs);
-  const kp::Trajectories ref_traj = kp::ReadTrajectories(ref_root / kp::layout::kTrajectories);
+  const Reference reference{kp::ReadSensors(ref_root / kp::layout::kSensors),
+                            kp::ReadRigs(ref_root / kp::layout::kRigs),
+                            kp::ReadTrajectories(ref_root / kp::layout::kTrajectories)};
   const std::vector<fs::path> inputs = ctx.Inputs("estimates");
   if (!o.labels.empty() && o.labels.size() != inputs.size())
     throw ParamError("labels: " + std::to_string(o.labels.size()) + " given for " +
@@ -145,84 +270,9 @@ void CalibrationEvalStage::Run(RunContext& ctx) {
   TextTable per_camera;
   per_camera.header = {"estimate", "camera", "group", "focal error (%)", "principal point error (px)",
                        "camera rotation error (deg)", "images", "position RMS (cm)", "rotation RMS (deg)"};
-  for (size_t e = 0; e < inputs.size(); ++e) {
-    const std::string label = o.labels.empty() ? LabelOf(inputs[e]) : o.labels[e];
-    const kp::Sensors sensors = kp::ReadSensors(inputs[e] / kp::layout::kSensors);
-    const kp::Rigs rigs = fs::exists(inputs[e] / kp::layout::kRigs) ? kp::ReadRigs(inputs[e] / kp::layout::kRigs) : kp::Rigs();
-    const kp::Trajectories traj = kp::ReadTrajectories(inputs[e] / kp::layout::kTrajectories);
-    // Camera poses with a reference pose at the same (timestamp, device).
-    struct Pair { std::string device; Pose est, ref; };
-    std::vector<Pair> pairs;
-    for (const auto& [key, pose] : traj.poses) {
-      const kp::Sensor* s = sensors.Find(key.second);
-      if (!s || !s->IsCamera()) continue;
-      const Pose* ref = ref_traj.Find(key.first, key.second);
-      if (ref) pairs.push_back({key.second, pose, *ref});
-    }
-    if (pairs.empty())
-      throw InputError((inputs[e] / kp::layout::kTrajectories).string(), 0, "trajectories",
-                       "no camera pose shares a (timestamp, device) with " + o.reference);
-    Pose T_ref_est;
-    std::vector<Pose> a, b;
-    for (const auto& p : pairs) {
-      a.push_back(p.est);
-      b.push_back(p.ref);
-    }
-    if (o.alignment == "se3") T_ref_est = AlignPoses(a, b);
-    const Sim3Alignment sim3 = AlignSim3(a, b);
-    std::map<std::string, Metrics> metrics;       // group -> metrics
-    std::map<std::string, Metrics> camera_poses;  // camera -> pose metrics
-    for (const auto& p : pairs) {
-      const Pose est = p.est * T_ref_est.Inverse();  // T_C_refworld
-      const double dp = (est.Center() - p.ref.Center()).norm();
-      const double dr = RotationAngleDeg(est.q, p.ref.q);
-      const double dp_raw = (p.est.Center() - p.ref.Center()).norm();
-      const double dp_sim3 = (sim3.scale * sim3.R * p.est.Center() + sim3.t - p.ref.Center()).norm();
-      for (const std::string& g : {groups.Of(p.device), std::string("all")}) {
-        metrics[g].position_m.Add(dp);
-        metrics[g].rotation_deg.Add(dr);
-        metrics[g].position_raw_m.Add(dp_raw);
-        metrics[g].position_sim3_m.Add(dp_sim3);
-      }
-      camera_poses[p.device].position_m.Add(dp);
-      camera_poses[p.device].rotation_deg.Add(dr);
-    }
-    for (const kp::Sensor& s : sensors.list()) {
-      if (!s.IsCamera() || !s.camera) continue;
-      const kp::Sensor* r = ref_sensors.Find(s.id);
-      if (!r || !r->camera) continue;
-      const double fe = 100.0 * (0.5 * (s.camera->fx() / r->camera->fx() + s.camera->fy() / r->camera->fy()) - 1.0);
-      const double ppe = std::hypot(s.camera->cx() - r->camera->cx(), s.camera->cy() - r->camera->cy());
-      double rot = std::nan("");
-      const kp::Rig* rig = rigs.RigOf(s.id);
-      const kp::Rig* ref_rig = ref_rigs.RigOf(s.id);
-      if (rig && ref_rig)
-        rot = RotationAngleDeg(rig->Find(s.id)->sensor_from_rig.q, ref_rig->Find(s.id)->sensor_from_rig.q);
-      const std::string g = groups.Of(s.id);
-      for (const std::string& k : {g, std::string("all")}) {
-        Metrics& m = metrics[k];
-        ++m.cameras;
-        m.focal_percent.Add(fe);
-        m.principal_point_px.Add(ppe);
-        if (!std::isnan(rot)) m.camera_rotation_deg.Add(rot);
-      }
-      const Metrics& cp = camera_poses[s.id];
-      per_camera.rows.push_back({label, s.id, g, Fixed(fe, 3), Fixed(ppe, 2), std::isnan(rot) ? "-" : Fixed(rot, 3),
-                                 std::to_string(cp.position_m.n), Fixed(100 * cp.position_m.Rms(), 2),
-                                 Fixed(cp.rotation_deg.Rms(), 3)});
-    }
-    for (const std::string& g : group_names) {
-      const Metrics& m = metrics[g];
-      if (!m.position_m.n && !m.cameras) continue;
-      table.rows.push_back({label + (g == "all" ? "" : " / " + g), std::to_string(m.cameras),
-                            std::to_string(m.position_m.n), Fixed(100 * m.position_m.Rms(), 2),
-                            Fixed(m.rotation_deg.Rms(), 3), Fixed(100 * m.position_raw_m.Rms(), 2),
-                            Fixed(100 * m.position_sim3_m.Rms(), 2), Fixed(100 * (sim3.scale - 1), 3),
-                            Fixed(m.focal_percent.Rms(), 3),
-                            Fixed(m.focal_percent.max, 3), Fixed(m.principal_point_px.Rms(), 2),
-                            Fixed(m.camera_rotation_deg.Rms(), 3), Fixed(m.camera_rotation_deg.max, 3)});
-    }
-  }
+  for (size_t e = 0; e < inputs.size(); ++e)
+    EvaluateEstimate(o.labels.empty() ? LabelOf(inputs[e]) : o.labels[e], inputs[e], reference, o, groups,
+                     group_names, &table, &per_camera);
   const fs::path out = ctx.output_dir();
   const std::string note =
       "Camera poses: per image, against the reference pose of the same (timestamp, camera); " +

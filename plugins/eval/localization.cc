@@ -71,6 +71,94 @@ struct EvalOptions {
   }
 };
 
+using Labels = std::vector<std::pair<std::string, std::regex>>;
+using Buckets = std::map<std::pair<std::string, std::string>, std::vector<QueryError>>;  // (group, split) -> errors
+
+// Each query image with a ground-truth pose: its error (and how many had none).
+std::vector<QueryError> QueryErrors(kp::Kapture& gt, kp::Kapture& est, const Labels& groups, const Labels& splits,
+                                    int* without_gt) {
+  std::vector<QueryError> errors;
+  for (const auto& r : gt.ReadDataRecords(kp::kSensorCamera)) {
+    const auto truth = gt.DevicePose(r.timestamp, r.device_id);
+    if (!truth) {
+      ++*without_gt;
+      continue;
+    }
+    QueryError e = ComputeError(*truth, est.DevicePose(r.timestamp, r.device_id));
+    e.image = r.path;
+    e.device = r.device_id;
+    e.group = LabelOf(groups, r.device_id);
+    e.split = LabelOf(splits, r.path);
+    errors.push_back(e);
+  }
+  return errors;
+}
+
+// Buckets: all, each group, each split, each group x split.
+Buckets BucketsOf(const std::vector<QueryError>& errors, bool by_group, bool by_split) {
+  Buckets buckets;
+  for (const auto& e : errors) {
+    buckets[{"all", "all"}].push_back(e);
+    if (by_group) buckets[{e.group, "all"}].push_back(e);
+    if (by_split) buckets[{"all", e.split}].push_back(e);
+    if (by_group && by_split) buckets[{e.group, e.split}].push_back(e);
+  }
+  return buckets;
+}
+
+// One row per bucket: queries, localized, recall at each threshold, medians.
+Table SummaryTable(const Buckets& buckets, const EvalOptions& o) {
+  Table summary;
+  summary.header = {"method", "group", "split", "queries", "localized"};
+  for (size_t i = 0; i < o.positions_m.size(); ++i)
+    summary.header.push_back(FormatDouble(o.positions_m[i]) + "m," + FormatDouble(o.angles_deg[i]) + "deg");
+  summary.header.push_back("median_position_m");
+  summary.header.push_back("median_rotation_deg");
+  for (const auto& [key, list] : buckets) {
+    size_t localized = 0;
+    for (const auto& e : list) localized += e.localized;
+    std::vector<std::string> row = {o.method, key.first, key.second, std::to_string(list.size()),
+                                    std::to_string(localized)};
+    for (size_t i = 0; i < o.positions_m.size(); ++i)
+      row.push_back(Percent(Recall(list, {o.positions_m[i], o.angles_deg[i]})));
+    row.push_back(FormatDouble(MedianPosition(list)));
+    row.push_back(FormatDouble(MedianRotation(list)));
+    summary.rows.push_back(row);
+  }
+  return summary;
+}
+
+Table PerQueryTable(const std::vector<QueryError>& errors) {
+  Table per_query;
+  per_query.header = {"image", "device_id", "group", "split", "localized", "position_error_m", "rotation_error_deg"};
+  for (const auto& e : errors)
+    per_query.rows.push_back({e.image, e.device, e.group, e.split, e.localized ? "1" : "0",
+                              e.localized ? FormatDouble(e.position_m) : "",
+                              e.localized ? FormatDouble(e.rotation_deg) : ""});
+  return per_query;
+}
+
+// Figure 7: one curve per bucket in the table (eval/table reads all/all);
+// `shown`: all queries, each group and each split (not every group x split:
+// that many curves would repeat colours).
+Table RecallCurves(const Buckets& buckets, const EvalOptions& o, std::vector<plot::Series>* shown) {
+  Table curve_table;
+  curve_table.header = {"group", "split", "position_m", "angle_deg", "recall_percent"};
+  for (const auto& [key, list] : buckets) {
+    // "method", "industrial" (a group, all splits), "test" (a split), "industrial/test".
+    const std::string label = key.first == "all" && key.second == "all" ? o.method
+                              : key.second == "all"                      ? key.first
+                              : key.first == "all"                       ? key.second
+                                                                         : key.first + "/" + key.second;
+    const plot::Series curve = RecallCurve(list, label, o.curve_max_m, kAnglePerMetre, 150, kRecallDecades);
+    if (key.first == "all" || key.second == "all") shown->push_back(curve);
+    for (size_t i = 0; i < curve.x.size(); ++i)
+      curve_table.rows.push_back({key.first, key.second, FormatDouble(curve.x[i]),
+                                  FormatDouble(kAnglePerMetre * curve.x[i]), FormatDouble(curve.y[i])});
+  }
+  return curve_table;
+}
+
 class LocalizationEval : public Stage<EvalOptions> {
  public:
   static StageMeta Meta() {
@@ -92,83 +180,21 @@ class LocalizationEval : public Stage<EvalOptions> {
     const auto splits = ParseLabelled(o.splits, "splits", nullptr);
     kp::Kapture gt(ctx.Input("ground_truth"));
     kp::Kapture est(ctx.Input("estimates"));
-    std::vector<QueryError> errors;
     int without_gt = 0;
-    for (const auto& r : gt.ReadDataRecords(kp::kSensorCamera)) {
-      const auto truth = gt.DevicePose(r.timestamp, r.device_id);
-      if (!truth) {
-        ++without_gt;
-        continue;
-      }
-      QueryError e = ComputeError(*truth, est.DevicePose(r.timestamp, r.device_id));
-      e.image = r.path;
-      e.device = r.device_id;
-      e.group = LabelOf(groups, r.device_id);
-      e.split = LabelOf(splits, r.path);
-      errors.push_back(e);
-    }
+    const std::vector<QueryError> errors = QueryErrors(gt, est, groups, splits, &without_gt);
     if (errors.empty())
       throw InputError(ctx.Input("ground_truth").string(), 0, "trajectories",
                        "no query image has a ground-truth pose");
     if (without_gt) ctx.Warn(std::to_string(without_gt) + " query images without GT pose skipped");
-
-    // Buckets: all, each group, each split, each group x split.
-    std::map<std::pair<std::string, std::string>, std::vector<QueryError>> buckets;
-    for (const auto& e : errors) {
-      buckets[{"all", "all"}].push_back(e);
-      if (!groups.empty()) buckets[{e.group, "all"}].push_back(e);
-      if (!splits.empty()) buckets[{"all", e.split}].push_back(e);
-      if (!groups.empty() && !splits.empty()) buckets[{e.group, e.split}].push_back(e);
-    }
-    Table summary;
-    summary.header = {"method", "group", "split", "queries", "localized"};
-    for (size_t i = 0; i < o.positions_m.size(); ++i)
-      summary.header.push_back(FormatDouble(o.positions_m[i]) + "m," +
-                               FormatDouble(o.angles_deg[i]) + "deg");
-    summary.header.push_back("median_position_m");
-    summary.header.push_back("median_rotation_deg");
-    for (const auto& [key, list] : buckets) {
-      size_t localized = 0;
-      for (const auto& e : list) localized += e.localized;
-      std::vector<std::string> row = {o.method, key.first, key.second,
-                                      std::to_string(list.size()), std::to_string(localized)};
-      for (size_t i = 0; i < o.positions_m.size(); ++i)
-        row.push_back(Percent(Recall(list, {o.positions_m[i], o.angles_deg[i]})));
-      row.push_back(FormatDouble(MedianPosition(list)));
-      row.push_back(FormatDouble(MedianRotation(list)));
-      summary.rows.push_back(row);
-    }
-    Table per_query;
-    per_query.header = {"image", "device_id", "group", "split", "localized", "position_error_m",
-                        "rotation_error_deg"};
-    for (const auto& e : errors)
-      per_query.rows.push_back({e.image, e.device, e.group, e.split, e.localized ? "1" : "0",
-                                e.localized ? FormatDouble(e.position_m) : "",
-                                e.localized ? FormatDouble(e.rotation_deg) : ""});
-    // Figure 7: one curve per bucket in curve.csv (eval/table reads all/all);
-    // the figure shows all queries, each group and each split (not every
-    // group x split: that many curves would repeat colours).
-    std::vector<plot::Series> curves, shown;
-    Table curve_table;
-    curve_table.header = {"group", "split", "position_m", "angle_deg", "recall_percent"};
-    for (const auto& [key, list] : buckets) {
-      // "method", "industrial" (a group, all splits), "test" (a split), "industrial/test".
-      const std::string label = key.first == "all" && key.second == "all" ? o.method
-                                : key.second == "all"                      ? key.first
-                                : key.first == "all"                       ? key.second
-                                                                           : key.first + "/" + key.second;
-      curves.push_back(RecallCurve(list, label, o.curve_max_m, kAnglePerMetre, 150, kRecallDecades));
-      if (key.first == "all" || key.second == "all") shown.push_back(curves.back());
-      for (size_t i = 0; i < curves.back().x.size(); ++i)
-        curve_table.rows.push_back({key.first, key.second, FormatDouble(curves.back().x[i]),
-                                    FormatDouble(kAnglePerMetre * curves.back().x[i]),
-                                    FormatDouble(curves.back().y[i])});
-    }
+    const Buckets buckets = BucketsOf(errors, !groups.empty(), !splits.empty());
+    const Table summary = SummaryTable(buckets, o);
+    std::vector<plot::Series> shown;
+    const Table curve_table = RecallCurves(buckets, o, &shown);
     const fs::path out = ctx.output_dir();
     WriteFileAtomic(out / "summary.md", "# " + o.method + "\n\n" + ToMarkdown(summary));
     WriteFileAtomic(out / "summary.csv", ToCsv(summary));
     WriteFileAtomic(out / "summary.tex", ToLatex(summary));
-    WriteFileAtomic(out / "per_query.csv", ToCsv(per_query));
+    WriteFileAtomic(out / "per_query.csv", ToCsv(PerQueryTable(errors)));
     WriteFileAtomic(out / "curve.csv", ToCsv(curve_table));
     const plot::Figure figure = RecallFigure(shown, o.method, o.curve_max_m, kAnglePerMetre);
     plot::WriteFigure(figure, (out / "curve.svg").string());

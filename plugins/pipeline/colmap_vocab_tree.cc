@@ -63,6 +63,13 @@ class VocabTreeStage : public Stage<VocabTreeOptions> {
   void Run(RunContext& ctx, const std::vector<std::string>& args, const std::string& tag);
   std::vector<std::string> Extract(RunContext& ctx, const fs::path& db, const fs::path& images,
                                    const fs::path& list, const std::string& tag);
+  // The steps of Run.
+  std::vector<kapture::DataRecord> BuildMap(RunContext& ctx, kapture::Kapture& map,
+                                            std::vector<std::string>* match_common);
+  std::vector<kapture::DataRecord> RegisterQueries(RunContext& ctx, kapture::Kapture& query,
+                                                   const std::vector<kapture::DataRecord>& map_records,
+                                                   const std::vector<std::string>& match_common);
+  std::vector<std::string> SiftMatchingArgs(RunContext& ctx) const;
   std::map<std::string, double> seconds_;
 };
 
@@ -136,10 +143,56 @@ void VocabTreeStage::Run(RunContext& ctx, const std::vector<std::string>& args,
   seconds_[tag] = r.seconds;
 }
 
-void VocabTreeStage::Run(RunContext& ctx) {
+namespace {
+
+// A fixed-pose model of the map database's images with COLMAP's ids and
+// keypoints (the images without a pose left out).
+colmap::Reconstruction FixedPoseModel(const fs::path& map_db, kp::Kapture& map,
+                                      const std::vector<kp::DataRecord>& map_records) {
+  colmap::Reconstruction input;
+  Database db(map_db, Database::Mode::kReadOnly);
+  for (const auto& c : db.ReadCameras()) input.cameras.push_back({c.camera_id, c.camera});
+  std::map<std::string, const kp::DataRecord*> by_name;
+  for (const auto& r : map_records) by_name[r.path] = &r;
+  for (const auto& im : db.ReadImages()) {
+    const kp::DataRecord* r = by_name.at(im.name);
+    const auto pose = map.DevicePose(r->timestamp, r->device_id);
+    if (!pose) continue;
+    colmap::ModelImage mi;
+    mi.image_id = im.image_id;
+    mi.camera_id = im.camera_id;
+    mi.name = im.name;
+    mi.SetCameraFromWorld(*pose);
+    const auto kpts = db.ReadKeypoints(im.image_id);
+    if (kpts)
+      for (uint32_t i = 0; i < kpts->rows; ++i) {
+        colmap::Point2D p;
+        p.xy = Eigen::Vector2d(kpts->at(i, 0), kpts->at(i, 1));
+        mi.points2d.push_back(p);
+      }
+    input.images.push_back(std::move(mi));
+  }
+  return input;
+}
+
+// Every query x map pair, by name (matches_importer's pair list).
+std::string QueryPairs(const std::vector<kp::DataRecord>& query_records,
+                       const std::vector<kp::DataRecord>& map_records) {
+  std::ostringstream pairs;
+  for (const auto& q : query_records)
+    for (const auto& m : map_records) pairs << q.path << " " << m.path << "\n";
+  return pairs.str();
+}
+
+}  // namespace
+
+// The map: its images into map.db, features, a vocabulary tree (unless
+// exhaustive or given), matches, and points triangulated at the fixed poses.
+// The map's records; match_common: the matcher options the queries share.
+std::vector<kp::DataRecord> VocabTreeStage::BuildMap(RunContext& ctx, kp::Kapture& map,
+                                                     std::vector<std::string>* match_common) {
   const auto& o = options();
   const fs::path out = ctx.output_dir();
-  kp::Kapture map(ctx.Input("map")), query(ctx.Input("query"));
   const fs::path map_db = out / "map.db";
   std::vector<kp::DataRecord> map_records;
   {
@@ -155,43 +208,15 @@ void VocabTreeStage::Run(RunContext& ctx) {
               tree.string(), "--num_visual_words", std::to_string(o.num_visual_words)},
         "vocab_tree_builder");
   }
-  const std::vector<std::string> sift_matching = {"--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads",
-                                                  std::to_string(ctx.threads())};
-  std::vector<std::string> match_common = sift_matching;
+  *match_common = SiftMatchingArgs(ctx);
   if (!exhaustive)
-    match_common.insert(match_common.end(), {"--VocabTreeMatching.vocab_tree_path", tree.string(),
-                                              "--VocabTreeMatching.num_images", std::to_string(o.num_images)});
+    match_common->insert(match_common->end(), {"--VocabTreeMatching.vocab_tree_path", tree.string(),
+                                                "--VocabTreeMatching.num_images", std::to_string(o.num_images)});
   std::vector<std::string> a = {exhaustive ? "exhaustive_matcher" : "vocab_tree_matcher", "--database_path",
                                 map_db.string()};
-  a.insert(a.end(), match_common.begin(), match_common.end());
+  a.insert(a.end(), match_common->begin(), match_common->end());
   Run(ctx, a, exhaustive ? "exhaustive_matcher_map" : "vocab_tree_matcher_map");
-  // Fixed-pose model with COLMAP's ids and keypoints.
-  colmap::Reconstruction input;
-  {
-    Database db(map_db, Database::Mode::kReadOnly);
-    for (const auto& c : db.ReadCameras()) input.cameras.push_back({c.camera_id, c.camera});
-    std::map<std::string, const kp::DataRecord*> by_name;
-    for (const auto& r : map_records) by_name[r.path] = &r;
-    for (const auto& im : db.ReadImages()) {
-      const kp::DataRecord* r = by_name.at(im.name);
-      const auto pose = map.DevicePose(r->timestamp, r->device_id);
-      if (!pose) continue;
-      colmap::ModelImage mi;
-      mi.image_id = im.image_id;
-      mi.camera_id = im.camera_id;
-      mi.name = im.name;
-      mi.SetCameraFromWorld(*pose);
-      const auto kpts = db.ReadKeypoints(im.image_id);
-      if (kpts)
-        for (uint32_t i = 0; i < kpts->rows; ++i) {
-          colmap::Point2D p;
-          p.xy = Eigen::Vector2d(kpts->at(i, 0), kpts->at(i, 1));
-          mi.points2d.push_back(p);
-        }
-      input.images.push_back(std::move(mi));
-    }
-  }
-  colmap::WriteModelText(input, out / "input_model");
+  colmap::WriteModelText(FixedPoseModel(map_db, map, map_records), out / "input_model");
   fs::create_directories(out / "map_model");
   a = {"point_triangulator", "--database_path", map_db.string(), "--input_path",
        (out / "input_model").string(), "--output_path", (out / "map_model").string(),
@@ -199,23 +224,33 @@ void VocabTreeStage::Run(RunContext& ctx) {
   AddFixedIntrinsics(&a);
   kPaperTriangulator.AddTo(&a);
   Run(ctx, a, "point_triangulator");
-  // Queries.
+  return map_records;
+}
+
+std::vector<std::string> VocabTreeStage::SiftMatchingArgs(RunContext& ctx) const {
+  return {"--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", std::to_string(ctx.threads())};
+}
+
+// The queries: into a copy of the map's database, features, matches
+// against the map (every pair when exhaustive), registration.
+std::vector<kp::DataRecord> VocabTreeStage::RegisterQueries(RunContext& ctx, kp::Kapture& query,
+                                                            const std::vector<kp::DataRecord>& map_records,
+                                                            const std::vector<std::string>& match_common) {
+  const fs::path out = ctx.output_dir();
   const fs::path db_path = out / "database.db";
-  fs::copy_file(map_db, db_path, fs::copy_options::overwrite_existing);
+  fs::copy_file(out / "map.db", db_path, fs::copy_options::overwrite_existing);
   std::vector<kp::DataRecord> query_records;
   {
     Database db(db_path, Database::Mode::kReadWrite);
     query_records = AddDatasetImages(query, &db, out / "query_images.txt");
   }
   Extract(ctx, db_path, query.root() / kp::layout::kRecordsData, out / "query_images.txt", "query");
-  if (exhaustive) {
-    // Every query x map pair, by name (matches_importer's pair list).
-    std::ostringstream pairs;
-    for (const auto& q : query_records)
-      for (const auto& m : map_records) pairs << q.path << " " << m.path << "\n";
-    WriteFileAtomic(out / "query_pairs.txt", pairs.str());
+  std::vector<std::string> a;
+  if (options().matching == "exhaustive") {
+    WriteFileAtomic(out / "query_pairs.txt", QueryPairs(query_records, map_records));
     a = {"matches_importer", "--database_path", db_path.string(), "--match_list_path",
          (out / "query_pairs.txt").string(), "--match_type", "pairs"};
+    const std::vector<std::string> sift_matching = SiftMatchingArgs(ctx);
     a.insert(a.end(), sift_matching.begin(), sift_matching.end());
     Run(ctx, a, "matches_importer_query");
   } else {
@@ -230,6 +265,15 @@ void VocabTreeStage::Run(RunContext& ctx) {
   AddFixedIntrinsics(&a);
   kPaperRegistrator.AddTo(&a);
   Run(ctx, a, "image_registrator");
+  return query_records;
+}
+
+void VocabTreeStage::Run(RunContext& ctx) {
+  const fs::path out = ctx.output_dir();
+  kp::Kapture map(ctx.Input("map")), query(ctx.Input("query"));
+  std::vector<std::string> match_common;
+  const std::vector<kp::DataRecord> map_records = BuildMap(ctx, map, &match_common);
+  const std::vector<kp::DataRecord> query_records = RegisterQueries(ctx, query, map_records, match_common);
   const colmap::Reconstruction model = colmap::ReadModel(out / "model");
   const int ok = WriteRegisteredQueries(model, query, query_records, out);
   std::ostringstream times;

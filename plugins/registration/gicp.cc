@@ -25,9 +25,9 @@ struct GicpOptions {
   // Converged when a step rotates less than rotation_epsilon (radians) and
   // translates less than translation_epsilon (metres). Tight on purpose: the
   // robust weights make the last iterations converge linearly, so a loose
-  // stop (2e-3 rad) leaves each registration short of its optimum on the
-  // side of its guess; a SLAM chaining hundreds of them through a spin in
-  // place, guessed by wheels that turn 2 % short, drifted 0.4 deg (large seed 4).
+  // stop leaves each registration short of its optimum on the side of its
+  // guess, a bias that a SLAM chaining hundreds of them accumulates
+  // (docs/results/slam.md).
   double rotation_epsilon = 1e-4;
   double translation_epsilon = 1e-4;
   int k_neighbors = 20;                      // Neighbours per covariance.

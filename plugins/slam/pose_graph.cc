@@ -164,6 +164,85 @@ void PoseGraphStageOptions::Declare(ParamSchema<PoseGraphStageOptions>& s) {
 }
 
 
+namespace {
+
+// The wide-gate passes' back-end: the same one with coarse_params (those it
+// declares; the others are reported).
+ComponentSpec WideSpec(RunContext& ctx, const PoseGraphStageOptions& o, const RegistrationBackend& refine) {
+  ComponentSpec wide_spec = o.registration;
+  std::string applied, skipped;
+  for (const std::string& entry : o.slam.coarse_params) {
+    const size_t eq = entry.find('=');
+    const std::string key = entry.substr(0, eq), value = entry.substr(eq + 1);  // SlamOptions::Check: key=value
+    if (!refine.Declares(key)) {
+      skipped += (skipped.empty() ? "" : ", ") + key;
+      continue;
+    }
+    wide_spec = wide_spec.With(key, value);
+    applied += (applied.empty() ? "" : ", ") + entry;
+  }
+  if (!skipped.empty())
+    ctx.Info("pose_graph: coarse_params " + skipped + " not declared by " + o.registration.stage +
+             ": its wide-gate passes run to its own stop");
+  if (!applied.empty()) ctx.Info("pose_graph: wide-gate passes with " + applied);
+  return wide_spec;
+}
+
+// Independent registrations (sequential ones guessed by the wheels, the
+// rough checks of joins) side by side: one single-threaded back-end pair
+// per thread (a back-end aligns on one thread at a time). The back-ends,
+// which must outlive the slam.
+std::vector<RegistrationBackend> AddWorkerRegistrars(RunContext& ctx, const ComponentSpec& wide_spec,
+                                                     const ComponentSpec& narrow_spec, int threads, Slam* slam) {
+  std::vector<RegistrationBackend> worker_backends;
+  if (threads <= 1) return worker_backends;
+  std::vector<std::pair<Registrar, Registrar>> workers;
+  worker_backends.reserve(2 * static_cast<size_t>(threads));
+  for (int w = 0; w < threads; ++w) {
+    worker_backends.push_back(RegistrationBackend::Create(ctx, wide_spec));
+    worker_backends.push_back(RegistrationBackend::Create(ctx, narrow_spec));
+  }
+  for (int w = 0; w < threads; ++w) {
+    const RegistrationBackend* wide = &worker_backends[2 * w];
+    const RegistrationBackend* narrow = &worker_backends[2 * w + 1];
+    workers.emplace_back([wide](const Cloud& s, const Cloud& t, const Pose& g) { return wide->Align(s, t, g, 1); },
+                         [narrow](const Cloud& s, const Cloud& t, const Pose& g) { return narrow->Align(s, t, g, 1); });
+  }
+  slam->SetWorkerRegistrars(std::move(workers));
+  return worker_backends;
+}
+
+// The scans in time order, their keyframes selected: the scans' records.
+std::vector<kapture::DataRecord> SelectKeyframes(RunContext& ctx, kapture::Kapture& k, Slam* slam) {
+  std::vector<kapture::DataRecord> scans = k.ReadDataRecords(kapture::kSensorLidar);
+  std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
+  std::vector<ScanStamp> stamps;
+  for (const auto& r : scans) stamps.push_back({r.timestamp, SequenceOfScan(r.path)});
+  const auto keyframes_start = std::chrono::steady_clock::now();
+  slam->SelectKeyframes(stamps, [&](size_t i) {
+    return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt"));
+  });
+  slam->AddStepTime("keyframes",
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - keyframes_start).count());
+  ctx.Info("pose_graph: " + std::to_string(slam->keyframes().size()) + " keyframes of " +
+           std::to_string(scans.size()) + " scans");
+  return scans;
+}
+
+// Sequences left out of the merged frame: an error with unjoined: error (or
+// when a join is inconsistent), else reported.
+void CheckJoins(RunContext& ctx, const Slam& slam, const SlamOptions& o) {
+  bool separate = false, inconsistent = false;
+  for (const auto& j : slam.sequence_joins()) {
+    separate = separate || j.status == "separate";
+    inconsistent = inconsistent || !j.consistent;
+  }
+  if (inconsistent || (separate && o.unjoined == "error")) throw Error("slam/pose_graph: " + UnjoinedMessage(slam));
+  if (separate) ctx.Info("pose_graph: " + UnjoinedMessage(slam));
+}
+
+}  // namespace
+
 void PoseGraphSlam::Run(RunContext& ctx) {
   const PoseGraphStageOptions& o = options();
   const auto start = std::chrono::steady_clock::now();
@@ -175,31 +254,13 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   if (o.motion_prior == "wheel")
     odometry = std::make_unique<WheelOdometry>(WheelOdometry::FromKapture(recording, o.wheels.Params()));
   // The final pass of refine_correspondence_distance_m (max_correspondence_distance
-  // is a key every registration back-end declares), and the wide-gate passes:
-  // the same back-end with coarse_params (those it declares).
+  // is a key every registration back-end declares), and the wide-gate passes.
   const bool final_pass = o.slam.refine_correspondence_distance_m > 0;
   const ComponentSpec narrow_spec =
       final_pass ? o.registration.With("max_correspondence_distance", FormatDouble(o.slam.refine_correspondence_distance_m))
                  : o.registration;
   RegistrationBackend refine = RegistrationBackend::Create(ctx, narrow_spec);
-  ComponentSpec wide_spec = o.registration;
-  if (final_pass) {
-    std::string applied, skipped;
-    for (const std::string& entry : o.slam.coarse_params) {
-      const size_t eq = entry.find('=');
-      const std::string key = entry.substr(0, eq), value = entry.substr(eq + 1);  // SlamOptions::Check: key=value
-      if (!refine.Declares(key)) {
-        skipped += (skipped.empty() ? "" : ", ") + key;
-        continue;
-      }
-      wide_spec = wide_spec.With(key, value);
-      applied += (applied.empty() ? "" : ", ") + entry;
-    }
-    if (!skipped.empty())
-      ctx.Info("pose_graph: coarse_params " + skipped + " not declared by " + o.registration.stage +
-               ": its wide-gate passes run to its own stop");
-    if (!applied.empty()) ctx.Info("pose_graph: wide-gate passes with " + applied);
-  }
+  const ComponentSpec wide_spec = final_pass ? WideSpec(ctx, o, refine) : o.registration;
   RegistrationBackend backend = RegistrationBackend::Create(ctx, wide_spec);
   const int threads = ctx.threads();
   SlamHooks hooks;
@@ -210,49 +271,13 @@ void PoseGraphSlam::Run(RunContext& ctx) {
       o.slam, odometry.get(),
       [&](const Cloud& s, const Cloud& t, const Pose& g) { return backend.Align(s, t, g, threads); },
       [&](const Cloud& s, const Cloud& t, const Pose& g) { return refine.Align(s, t, g, threads); }, threads, hooks);
-  // Independent registrations (sequential ones guessed by the wheels, the
-  // rough checks of joins) side by side: one single-threaded back-end pair
-  // per thread (a back-end aligns on one thread at a time).
-  std::vector<RegistrationBackend> worker_backends;
-  if (threads > 1) {
-    std::vector<std::pair<Registrar, Registrar>> workers;
-    worker_backends.reserve(2 * static_cast<size_t>(threads));
-    for (int w = 0; w < threads; ++w) {
-      worker_backends.push_back(RegistrationBackend::Create(ctx, wide_spec));
-      worker_backends.push_back(RegistrationBackend::Create(ctx, narrow_spec));
-    }
-    for (int w = 0; w < threads; ++w) {
-      const RegistrationBackend* wide = &worker_backends[2 * w];
-      const RegistrationBackend* narrow = &worker_backends[2 * w + 1];
-      workers.emplace_back([wide](const Cloud& s, const Cloud& t, const Pose& g) { return wide->Align(s, t, g, 1); },
-                           [narrow](const Cloud& s, const Cloud& t, const Pose& g) { return narrow->Align(s, t, g, 1); });
-    }
-    slam.SetWorkerRegistrars(std::move(workers));
-  }
-
+  const std::vector<RegistrationBackend> worker_backends =
+      AddWorkerRegistrars(ctx, wide_spec, narrow_spec, threads, &slam);
   const fs::path scans_root = ctx.Input("scans");
   kapture::Kapture k(scans_root);
-  std::vector<kapture::DataRecord> scans = k.ReadDataRecords(kapture::kSensorLidar);
-  std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
-  std::vector<ScanStamp> stamps;
-  for (const auto& r : scans) stamps.push_back({r.timestamp, SequenceOfScan(r.path)});
-  const auto keyframes_start = std::chrono::steady_clock::now();
-  slam.SelectKeyframes(stamps, [&](size_t i) {
-    return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt"));
-  });
-  slam.AddStepTime("keyframes",
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - keyframes_start).count());
-  ctx.Info("pose_graph: " + std::to_string(slam.keyframes().size()) + " keyframes of " +
-           std::to_string(scans.size()) + " scans");
+  const std::vector<kapture::DataRecord> scans = SelectKeyframes(ctx, k, &slam);
   slam.Run();
-
-  bool separate = false, inconsistent = false;
-  for (const auto& j : slam.sequence_joins()) {
-    separate = separate || j.status == "separate";
-    inconsistent = inconsistent || !j.consistent;
-  }
-  if (inconsistent || (separate && o.slam.unjoined == "error")) throw Error("slam/pose_graph: " + UnjoinedMessage(slam));
-  if (separate) ctx.Info("pose_graph: " + UnjoinedMessage(slam));
+  CheckJoins(ctx, slam, o.slam);
   // Sensors, rigs and camera records: the recording, else the scans' own.
   const kapture::Kapture dataset(recording.empty() ? scans_root : recording);
   ctx.Info("pose_graph: " + WriteSlamOutputs(slam, o.slam, scans, dataset, ctx.output_dir(), start));

@@ -122,75 +122,81 @@ uint64_t CellKey(int x, int y, int z) {
   auto u = [](int v) { return static_cast<uint64_t>(static_cast<uint32_t>(v) & 0x1fffff); };
   return (u(x) << 42) | (u(y) << 21) | u(z);
 }
-}  // namespace
-
-PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius, int threads, int stride) {
-  stride = std::max(1, stride);
-  // Neighbours by a grid of cells of side h = radius / 4, searched in shells
-  // of cells around the point's (Chebyshev ring s = 0, 1, ..., 4): a point in
-  // a ring beyond s is at least s h away, so the search stops once k
-  // neighbours are within s h (the same k nearest as a search of the whole
-  // radius, at a fraction of the distance tests in a dense map).
-  constexpr int kRings = 4;
-  const double h = radius / kRings;
-  const double inv = 1.0 / h;
-  auto cell = [&](const Eigen::Vector3f& p) {
-    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() * inv)), static_cast<int>(std::floor(p.y() * inv)),
-                           static_cast<int>(std::floor(p.z() * inv)));
-  };
-  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
-  for (size_t i = 0; i < map.size(); ++i) {
-    const Eigen::Vector3i c = cell(map.points[i]);
-    grid[CellKey(c.x(), c.y(), c.z())].push_back(static_cast<uint32_t>(i));
-  }
-  const double r2 = radius * radius;
-  // One residual per point (NaN: too few neighbours), computed in parallel;
-  // the statistics then read them in point order (same figures at any thread count).
-  std::vector<double> residual(map.size(), std::numeric_limits<double>::quiet_NaN());
-#pragma omp parallel num_threads(std::max(1, threads))
-  {
-    std::vector<std::pair<float, uint32_t>> near;
-#pragma omp for schedule(dynamic, 256)
-    for (int64_t i = 0; i < static_cast<int64_t>(map.size()); i += stride) {
-      const Eigen::Vector3f& p = map.points[i];
-      const Eigen::Vector3i c = cell(p);
-      near.clear();
-      for (int s = 0; s <= kRings; ++s) {
-        for (int dx = -s; dx <= s; ++dx)
-          for (int dy = -s; dy <= s; ++dy)
-            for (int dz = -s; dz <= s; ++dz) {
-              if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != s) continue;
-              const auto it = grid.find(CellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-              if (it == grid.end()) continue;
-              for (uint32_t j : it->second) {
-                if (static_cast<int64_t>(j) == i) continue;
-                const float d2 = (map.points[j] - p).squaredNorm();
-                if (d2 <= r2) near.emplace_back(d2, j);
-              }
-            }
-        if (static_cast<int>(near.size()) >= k) {
-          std::nth_element(near.begin(), near.begin() + (k - 1), near.end());
-          if (near[k - 1].first <= (s * h) * (s * h)) break;
-        }
-      }
-      if (static_cast<int>(near.size()) < k) continue;
-      std::nth_element(near.begin(), near.begin() + (k - 1), near.end());
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (int n = 0; n < k; ++n) mean += map.points[near[n].second].cast<double>();
-      mean /= k;
-      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-      for (int n = 0; n < k; ++n) {
-        const Eigen::Vector3d d = map.points[near[n].second].cast<double>() - mean;
-        cov += d * d.transpose();
-      }
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-      const Eigen::Vector3d normal = eig.eigenvectors().col(0);  // smallest eigenvalue
-      residual[i] = std::abs(normal.dot(p.cast<double>() - mean));
+// Neighbours by a grid of cells of side h = radius / 4, searched in shells
+// of cells around the point's (Chebyshev ring s = 0, 1, ..., 4): a point in
+// a ring beyond s is at least s h away, so the search stops once k
+// neighbours are within s h (the same k nearest as a search of the whole
+// radius, at a fraction of the distance tests in a dense map).
+struct ShellGrid {
+  static constexpr int kRings = 4;
+  ShellGrid(const Cloud& map, double radius) : h(radius / kRings), inv(1.0 / h), r2(radius * radius) {
+    for (size_t i = 0; i < map.size(); ++i) {
+      const Eigen::Vector3i c = Cell(map.points[i]);
+      cells[CellKey(c.x(), c.y(), c.z())].push_back(static_cast<uint32_t>(i));
     }
   }
+  Eigen::Vector3i Cell(const Eigen::Vector3f& p) const {
+    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() * inv)), static_cast<int>(std::floor(p.y() * inv)),
+                           static_cast<int>(std::floor(p.z() * inv)));
+  }
+  // The points of ring s around cell c within the radius of point i (into near).
+  void AddRing(const Cloud& map, int64_t i, const Eigen::Vector3i& c, int s,
+               std::vector<std::pair<float, uint32_t>>* near) const {
+    const Eigen::Vector3f& p = map.points[i];
+    for (int dx = -s; dx <= s; ++dx)
+      for (int dy = -s; dy <= s; ++dy)
+        for (int dz = -s; dz <= s; ++dz) {
+          if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != s) continue;
+          const auto it = cells.find(CellKey(c.x() + dx, c.y() + dy, c.z() + dz));
+          if (it == cells.end()) continue;
+          for (uint32_t j : it->second) {
+            if (static_cast<int64_t>(j) == i) continue;
+            const float d2 = (map.points[j] - p).squaredNorm();
+            if (d2 <= r2) near->emplace_back(d2, j);
+          }
+        }
+  }
+  // Point i's neighbours within the radius, rings out until the k nearest are certain.
+  void Neighbours(const Cloud& map, int64_t i, int k, std::vector<std::pair<float, uint32_t>>* near) const {
+    const Eigen::Vector3i c = Cell(map.points[i]);
+    near->clear();
+    for (int s = 0; s <= kRings; ++s) {
+      AddRing(map, i, c, s, near);
+      if (static_cast<int>(near->size()) >= k) {
+        std::nth_element(near->begin(), near->begin() + (k - 1), near->end());
+        if ((*near)[k - 1].first <= (s * h) * (s * h)) break;
+      }
+    }
+  }
+
+  const double h, inv, r2;
+  std::unordered_map<uint64_t, std::vector<uint32_t>> cells;
+};
+
+// Distance of p to the plane of its k nearest neighbours (normal: the
+// covariance's eigenvector of the smallest eigenvalue); NaN with fewer than k.
+double PlaneResidualOf(const Cloud& map, const Eigen::Vector3f& p, std::vector<std::pair<float, uint32_t>>& near,
+                       int k) {
+  if (static_cast<int>(near.size()) < k) return std::numeric_limits<double>::quiet_NaN();
+  std::nth_element(near.begin(), near.begin() + (k - 1), near.end());
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int n = 0; n < k; ++n) mean += map.points[near[n].second].cast<double>();
+  mean /= k;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (int n = 0; n < k; ++n) {
+    const Eigen::Vector3d d = map.points[near[n].second].cast<double>() - mean;
+    cov += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  const Eigen::Vector3d normal = eig.eigenvectors().col(0);  // smallest eigenvalue
+  return std::abs(normal.dot(p.cast<double>() - mean));
+}
+
+// The statistics of every stride-th point's residual, in point order.
+PlaneResidualStats SummarizeResiduals(const std::vector<double>& residual, int stride) {
   PlaneResidualStats out;
   std::vector<double> residuals;
-  residuals.reserve(map.size() / stride + 1);
+  residuals.reserve(residual.size() / stride + 1);
   for (size_t i = 0; i < residual.size(); i += stride) {
     if (std::isnan(residual[i])) ++out.skipped;
     else residuals.push_back(residual[i]);
@@ -208,6 +214,26 @@ PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius, int 
   out.median = residuals[residuals.size() / 2];
   out.p90 = residuals[std::min(residuals.size() - 1, residuals.size() * 9 / 10)];
   return out;
+}
+
+}  // namespace
+
+PlaneResidualStats MapPlaneResidual(const Cloud& map, int k, double radius, int threads, int stride) {
+  stride = std::max(1, stride);
+  const ShellGrid grid(map, radius);
+  // One residual per point (NaN: too few neighbours), computed in parallel;
+  // the statistics then read them in point order (same figures at any thread count).
+  std::vector<double> residual(map.size(), std::numeric_limits<double>::quiet_NaN());
+#pragma omp parallel num_threads(std::max(1, threads))
+  {
+    std::vector<std::pair<float, uint32_t>> near;
+#pragma omp for schedule(dynamic, 256)
+    for (int64_t i = 0; i < static_cast<int64_t>(map.size()); i += stride) {
+      grid.Neighbours(map, i, k, &near);
+      residual[i] = PlaneResidualOf(map, map.points[i], near, k);
+    }
+  }
+  return SummarizeResiduals(residual, stride);
 }
 
 }  // namespace locforge::lidar

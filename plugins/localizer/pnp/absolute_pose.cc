@@ -321,30 +321,38 @@ bool RansacOptions::Check(std::string* why) const {
   return refine.Check(why);
 }
 
-AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& cs,
-                                        const std::vector<RigCamera>& cameras,
-                                        const RansacOptions& options) {
-  AbsolutePoseResult result;
-  const double th2 = options.max_error_px * options.max_error_px;
-  std::vector<std::vector<int>> by_camera(cameras.size());
-  for (size_t i = 0; i < cs.size(); ++i) {
-    if (cs[i].camera < 0 || cs[i].camera >= static_cast<int>(cameras.size()))
-      throw std::invalid_argument("correspondence camera index out of range");
-    by_camera[cs[i].camera].push_back(static_cast<int>(i));
-  }
-  std::vector<int> sampleable;
-  for (size_t i = 0; i < cs.size(); ++i)
-    if (by_camera[cs[i].camera].size() >= 3) sampleable.push_back(static_cast<int>(i));
-  if (static_cast<int>(cs.size()) < options.min_inliers || sampleable.empty()) {
-    result.failure = "too few 2D-3D correspondences (" + std::to_string(cs.size()) + ")";
-    return result;
-  }
+namespace {
 
-  std::mt19937_64 rng(options.seed);
+// One LO-RANSAC run (P3P samples within one camera of the rig, local
+// optimisation of each better hypothesis) and its best pose so far.
+struct Ransac {
+  Ransac(const std::vector<Correspondence>& cs, const std::vector<RigCamera>& cameras, const RansacOptions& options)
+      : cs(cs), cameras(cameras), options(options), th2(options.max_error_px * options.max_error_px),
+        by_camera(cameras.size()), rng(options.seed) {}
+
+  const std::vector<Correspondence>& cs;
+  const std::vector<RigCamera>& cameras;
+  const RansacOptions& options;
+  const double th2;
+  std::vector<std::vector<int>> by_camera;  // correspondences of each camera
+  std::vector<int> sampleable;              // of cameras with 3 or more
+  std::mt19937_64 rng;
   double best_score = std::numeric_limits<double>::infinity();
   std::vector<int> best_inliers;
   Pose best_pose;
-  auto consider = [&](const Pose& pose) {
+
+  void IndexByCamera() {
+    for (size_t i = 0; i < cs.size(); ++i) {
+      if (cs[i].camera < 0 || cs[i].camera >= static_cast<int>(cameras.size()))
+        throw std::invalid_argument("correspondence camera index out of range");
+      by_camera[cs[i].camera].push_back(static_cast<int>(i));
+    }
+    for (size_t i = 0; i < cs.size(); ++i)
+      if (by_camera[cs[i].camera].size() >= 3) sampleable.push_back(static_cast<int>(i));
+  }
+
+  // True when pose scores better than the best so far (then it is the best).
+  bool Consider(const Pose& pose) {
     double score;
     std::vector<int> inliers = InliersOf(cs, cameras, pose, th2, &score);
     if (score < best_score) {
@@ -354,9 +362,24 @@ AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& cs,
       return true;
     }
     return false;
-  };
-  // Local optimisation: refit on the inliers while they grow.
-  auto optimise_locally = [&]() {
+  }
+
+  // The LO refinement only needs to improve the hypothesis: a strided
+  // subset of large inlier sets keeps it cheap (the final one uses all).
+  std::vector<int> RefinementSubset() const {
+    std::vector<int> subset = best_inliers;
+    if (subset.size() > kMaxLoRefineInliers) {
+      std::vector<int> strided;
+      const double step = static_cast<double>(subset.size()) / kMaxLoRefineInliers;
+      for (size_t k = 0; k < kMaxLoRefineInliers; ++k) strided.push_back(subset[static_cast<size_t>(k * step)]);
+      subset.swap(strided);
+    }
+    return subset;
+  }
+
+  // Local optimisation: refit on the inliers while they grow (EPnP when they
+  // are all of one camera, then the robust refinement).
+  void OptimiseLocally() {
     for (int round = 0; round < 4; ++round) {
       const size_t before = best_inliers.size();
       if (before < 6) return;
@@ -372,35 +395,21 @@ AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& cs,
         }
         Pose camera_from_world;
         if (SolveEPnP(xs, ps, &camera_from_world))
-          consider(cameras[inliers.front().camera].camera_from_rig.Inverse() * camera_from_world);
-      }
-      // The LO refinement only needs to improve the hypothesis: a strided
-      // subset of large inlier sets keeps it cheap (the final one uses all).
-      std::vector<int> subset = best_inliers;
-      if (subset.size() > kMaxLoRefineInliers) {
-        std::vector<int> strided;
-        const double step = static_cast<double>(subset.size()) / kMaxLoRefineInliers;
-        for (size_t k = 0; k < kMaxLoRefineInliers; ++k)
-          strided.push_back(subset[static_cast<size_t>(k * step)]);
-        subset.swap(strided);
+          Consider(cameras[inliers.front().camera].camera_from_rig.Inverse() * camera_from_world);
       }
       Pose refined = best_pose;
-      if (RefinePose(Subset(cs, subset), cameras, options.refine, &refined)) consider(refined);
+      if (RefinePose(Subset(cs, RefinementSubset()), cameras, options.refine, &refined)) Consider(refined);
       if (best_inliers.size() <= before) return;
     }
-  };
+  }
 
-  const double n = static_cast<double>(cs.size());
-  int needed = options.max_iterations;
-  int iteration = 0;
-  std::uniform_int_distribution<size_t> pick_first(0, sampleable.size() - 1);
-  for (; iteration < std::max(needed, options.min_iterations) &&
-         iteration < options.max_iterations;
-       ++iteration) {
+  // Three distinct correspondences of one camera, the first drawn from all
+  // sampleable ones: false when the camera's pool gave no distinct three.
+  bool DrawSample(std::uniform_int_distribution<size_t>& pick_first, int sample[3]) {
     const int first = sampleable[pick_first(rng)];
     const auto& pool = by_camera[cs[first].camera];
     std::uniform_int_distribution<size_t> pick(0, pool.size() - 1);
-    int sample[3] = {first, first, first};
+    sample[0] = sample[1] = sample[2] = first;
     for (int k = 1; k < 3; ++k) {
       for (int tries = 0; tries < 100; ++tries) {
         const int candidate = pool[pick(rng)];
@@ -410,67 +419,114 @@ AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& cs,
         }
       }
     }
-    if (sample[1] == sample[0] || sample[2] == sample[0] || sample[2] == sample[1]) continue;
+    return !(sample[1] == sample[0] || sample[2] == sample[0] || sample[2] == sample[1]);
+  }
+
+  // The P3P poses of a sample, each considered: true when one was better.
+  bool TrySample(const int sample[3]) {
     std::vector<Eigen::Vector3d> bearings, points;
-    for (const int s : sample) {
-      bearings.push_back(cs[s].normalized.homogeneous());
-      points.push_back(cs[s].world);
+    for (int k = 0; k < 3; ++k) {
+      bearings.push_back(cs[sample[k]].normalized.homogeneous());
+      points.push_back(cs[sample[k]].world);
     }
-    const Pose& camera_from_rig = cameras[cs[first].camera].camera_from_rig;
+    const Pose& camera_from_rig = cameras[cs[sample[0]].camera].camera_from_rig;
     bool improved = false;
     for (const Pose& camera_from_world : SolveP3P(bearings, points))
-      improved |= consider(camera_from_rig.Inverse() * camera_from_world);
-    if (!improved) continue;
-    optimise_locally();
-    const double w = best_inliers.size() / n;
+      improved |= Consider(camera_from_rig.Inverse() * camera_from_world);
+    return improved;
+  }
+
+  // Iterations needed for the confidence at the best inlier ratio (RANSAC's
+  // stopping rule); `needed` unchanged when no sample can be all inliers.
+  void UpdateNeeded(int* needed) const {
+    const double w = best_inliers.size() / static_cast<double>(cs.size());
     const double p_good = std::pow(w, 3);
     if (p_good >= 1) {
-      needed = 0;
+      *needed = 0;
     } else if (p_good > 0) {
-      needed = static_cast<int>(std::min<double>(
-          options.max_iterations,
-          std::ceil(std::log(1 - options.confidence) / std::log(1 - p_good))));
+      *needed = static_cast<int>(std::min<double>(
+          options.max_iterations, std::ceil(std::log(1 - options.confidence) / std::log(1 - p_good))));
     }
   }
-  result.iterations = iteration;
-  if (best_inliers.size() < 3) {
-    result.failure = "RANSAC found no pose with 3 or more inliers";
-    return result;
+
+  // The hypothesis loop: how many iterations ran.
+  int Sample() {
+    int needed = options.max_iterations;
+    int iteration = 0;
+    std::uniform_int_distribution<size_t> pick_first(0, sampleable.size() - 1);
+    for (; iteration < std::max(needed, options.min_iterations) && iteration < options.max_iterations;
+         ++iteration) {
+      int sample[3];
+      if (!DrawSample(pick_first, sample)) continue;
+      if (!TrySample(sample)) continue;
+      OptimiseLocally();
+      UpdateNeeded(&needed);
+    }
+    return iteration;
   }
+
   // Final refinement on all inliers, then inliers measured again. The
   // refinement lowers the robust cost from RANSAC's pose, so it is kept even
   // when a few inliers move past the threshold: counting them is the coarser
   // criterion, and refusing the refined pose would keep a less accurate one.
-  RefineOptions final_refine = options.refine;
-  if (final_refine.noise_factor > 0)
-    final_refine.cauchy_scale_px = std::max(
-        final_refine.cauchy_scale_px,
-        final_refine.noise_factor * InlierNoiseSigmaPx(cs, cameras, best_pose, best_inliers));
-  Pose refined = best_pose;
-  if (RefinePose(Subset(cs, best_inliers), cameras, final_refine, &refined)) {
-    best_pose = refined;
-    best_inliers = InliersOf(cs, cameras, refined, th2, nullptr);
+  void RefineFinal() {
+    RefineOptions final_refine = options.refine;
+    if (final_refine.noise_factor > 0)
+      final_refine.cauchy_scale_px =
+          std::max(final_refine.cauchy_scale_px,
+                   final_refine.noise_factor * InlierNoiseSigmaPx(cs, cameras, best_pose, best_inliers));
+    Pose refined = best_pose;
+    if (RefinePose(Subset(cs, best_inliers), cameras, final_refine, &refined)) {
+      best_pose = refined;
+      best_inliers = InliersOf(cs, cameras, refined, th2, nullptr);
+    }
   }
-  result.rig_from_world = best_pose;
-  result.num_inliers = static_cast<int>(best_inliers.size());
-  result.inlier_mask.assign(cs.size(), 0);
-  double sum = 0;
-  for (int i : best_inliers) {
-    result.inlier_mask[i] = 1;
-    sum += std::sqrt(SquaredReprojectionError(best_pose, cameras[cs[i].camera], cs[i]));
+
+  // The best pose with its inliers into `result`, and the verdict on them.
+  void Report(AbsolutePoseResult* result) const {
+    const double n = static_cast<double>(cs.size());
+    result->rig_from_world = best_pose;
+    result->num_inliers = static_cast<int>(best_inliers.size());
+    result->inlier_mask.assign(cs.size(), 0);
+    double sum = 0;
+    for (int i : best_inliers) {
+      result->inlier_mask[i] = 1;
+      sum += std::sqrt(SquaredReprojectionError(best_pose, cameras[cs[i].camera], cs[i]));
+    }
+    result->mean_inlier_error_px = sum / std::max<size_t>(1, best_inliers.size());
+    if (result->num_inliers < options.min_inliers) {
+      result->failure = "only " + std::to_string(result->num_inliers) + " inliers (min_inliers " +
+                        std::to_string(options.min_inliers) + ")";
+      return;
+    }
+    if (result->num_inliers < options.min_inlier_ratio * n) {
+      result->failure =
+          "inlier ratio " + std::to_string(result->num_inliers / n) + " below min_inlier_ratio";
+      return;
+    }
+    result->success = true;
   }
-  result.mean_inlier_error_px = sum / std::max<size_t>(1, best_inliers.size());
-  if (result.num_inliers < options.min_inliers) {
-    result.failure = "only " + std::to_string(result.num_inliers) + " inliers (min_inliers " +
-                     std::to_string(options.min_inliers) + ")";
+};
+
+}  // namespace
+
+AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& cs,
+                                        const std::vector<RigCamera>& cameras,
+                                        const RansacOptions& options) {
+  AbsolutePoseResult result;
+  Ransac ransac(cs, cameras, options);
+  ransac.IndexByCamera();
+  if (static_cast<int>(cs.size()) < options.min_inliers || ransac.sampleable.empty()) {
+    result.failure = "too few 2D-3D correspondences (" + std::to_string(cs.size()) + ")";
     return result;
   }
-  if (result.num_inliers < options.min_inlier_ratio * n) {
-    result.failure = "inlier ratio " + std::to_string(result.num_inliers / n) +
-                     " below min_inlier_ratio";
+  result.iterations = ransac.Sample();
+  if (ransac.best_inliers.size() < 3) {
+    result.failure = "RANSAC found no pose with 3 or more inliers";
     return result;
   }
-  result.success = true;
+  ransac.RefineFinal();
+  ransac.Report(&result);
   return result;
 }
 

@@ -36,6 +36,12 @@ inline double YawOf(const Pose& T) {
   return std::atan2(x.y(), x.x());
 }
 
+// Headings the join's loops found, to be seeded at B's start too (slam_join.cc):
+// those two loops agree on (one loop alone is as often noise), first time
+// seen, more than max_rotation_deg from the turns already tried and from each other.
+std::vector<double> PlaceHeadings(const std::vector<JoinCandidate>& candidates, const std::vector<double>& turns,
+                                  double max_rotation_deg);
+
 // What the algorithm reports and asks of its caller.
 struct SlamHooks {
   std::function<void(const std::string&)> info = [](const std::string&) {};
@@ -177,6 +183,24 @@ class Slam {
   void Optimize();
   int JoinComponents(int round);
   bool TryJoin(int A, int B, int round);
+  // The steps of TryJoin (slam_join.cc), on one search's state.
+  struct JoinSearch;
+  struct JoinPlan;
+  const Keyframe* NearestKeyframe(const std::vector<const Keyframe*>& part, const Eigen::Vector3d& p) const;
+  std::vector<const Keyframe*> NearStart(const std::vector<const Keyframe*>& part, const Eigen::Vector3d& p0) const;
+  void AddJoinCandidate(JoinSearch& s, const Keyframe& a, const Keyframe& b, const RegistrationResult& r,
+                        bool predicted, bool precise) const;
+  void QueueRoughCheck(JoinSearch& s, const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses);
+  void RunRoughQueue(JoinSearch& s);
+  void QueueSeeds(JoinSearch& s, const std::vector<double>& yaws);
+  void QueuePlaces(JoinSearch& s);
+  JoinDecision JudgeFrames(JoinSearch& s);
+  const JoinPlan& PlanOf(JoinSearch& s, int hypothesis);
+  void MakeLoopsPrecise(JoinSearch& s, int hypothesis);
+  size_t TestPredictedLoops(JoinSearch& s, const Pose& H);
+  void ApplyJoin(JoinSearch& s, const JoinPlan& p);
+  void RunJoinTrials(JoinSearch& s, JoinDecision* d);
+  bool FinishJoin(JoinSearch& s, JoinDecision d);
   std::vector<Eigen::Vector3d> SequenceStarts(const std::vector<const Keyframe*>& part) const;
   std::vector<const Keyframe*> KeyframesOf(int component) const;
   std::string NameOf(int component) const;

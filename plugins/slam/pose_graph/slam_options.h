@@ -95,15 +95,15 @@ struct SlamOptions {
   double sigma_translation_m = 0.01;  // registration edges
   double sigma_rotation_deg = 0.1;    // registration edges
   // Odometry edges per metre driven (0: none). Weak: a wheel radius ~1 %
-  // off otherwise leaks its scale into the map along corridors (large seed 1:
-  // 0.1 m/m left map_00 0.29 % short, 3.25 cm whole-recording ATE; 0.3: 2.18 cm).
+  // off otherwise leaks its scale into the map along corridors where the
+  // scans constrain little (docs/results/slam.md, `large` seeds 0-4).
   double odometry_sigma_m_per_m = 0.3;
   double odometry_sigma_rotation_deg_per_m = 2;
   // Calibrate each sequence's odometry turn against its registrations
   // (Slam::CalibrateOdometryYaw): unequal wheel radii turn every spin by the
   // same factor too far or too short, and even weak odometry edges, all
-  // biased the same way, pull a full spin 0.2-0.6 deg off where no loop
-  // corrects it (large seeds 1 and 4, day-2 sequences).
+  // biased the same way, pull a full spin off where no loop corrects it
+  // (docs/results/slam.md).
   bool odometry_yaw_calibration = true;
   bool planar = true;                 // level-floor prior (wheeled platform)
   double planar_sigma_z_m = 0.01;

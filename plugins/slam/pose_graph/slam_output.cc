@@ -98,62 +98,60 @@ std::string UnjoinedMessage(const Slam& slam) {
   return s.str();
 }
 
-std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
-                             const std::vector<kapture::DataRecord>& scans, const kapture::Kapture& dataset,
-                             const fs::path& out, std::chrono::steady_clock::time_point start) {
-  const auto outputs_start = std::chrono::steady_clock::now();
-  const PoseGraph& graph = slam.graph();
-  const auto& keyframes = slam.keyframes();
-  const int anchor = slam.AnchorComponent();
-  // Only the anchor's part: a part not joined lives in another frame.
-  auto in_anchor = [&](bool found, const Keyframe* from) {
-    return found && from && slam.ComponentOf(from->sequence) == anchor;
-  };
+namespace {
+
+// Only the anchor's part: a part not joined lives in another frame.
+bool InAnchor(const Slam& slam, bool found, const Keyframe* from) {
+  return found && from && slam.ComponentOf(from->sequence) == slam.AnchorComponent();
+}
+
+// The rig at every scan and the cameras at every image, of the anchor's
+// part: trajectory interpolation (odometry between keyframes) x rig
+// extrinsics (T_camera_world = T_camera_rig T_rig_world).
+kapture::Trajectories AnchorTrajectories(const Slam& slam, const std::vector<kapture::DataRecord>& scans,
+                                         const kapture::Kapture& dataset, int64_t* camera_poses) {
   kapture::Trajectories trajectories;
   for (const auto& r : scans) {
     bool found = false;
     const Keyframe* from = nullptr;
     const Pose T_world_rig = slam.PoseAt(r.timestamp, &found, &from);
-    if (in_anchor(found, from)) trajectories.Set(r.timestamp, "rig", T_world_rig.Inverse());
+    if (InAnchor(slam, found, from)) trajectories.Set(r.timestamp, "rig", T_world_rig.Inverse());
   }
-  // Cameras at every image: trajectory interpolation (odometry between
-  // keyframes) x rig extrinsics (T_camera_world = T_camera_rig T_rig_world).
-  int64_t camera_poses = 0;
-  if (dataset.HasRecords(kapture::kSensorCamera)) {
-    dataset.ForEachDataRecord(kapture::kSensorCamera, [&](const kapture::DataRecord& r) {
-      const kapture::Rig* rig = dataset.rigs().RigOf(r.device_id);
-      const kapture::RigSensor* rs = rig ? rig->Find(r.device_id) : nullptr;
-      if (!rs) return;
-      bool found = false;
-      const Keyframe* from = nullptr;
-      const Pose T_world_rig = slam.PoseAt(r.timestamp, &found, &from);
-      if (!in_anchor(found, from)) return;
-      trajectories.Set(r.timestamp, r.device_id, rs->sensor_from_rig * T_world_rig.Inverse());
-      ++camera_poses;
-    });
-  }
-  kapture::WriteTrajectories(out / kapture::layout::kTrajectories, trajectories);
-  kapture::WriteSensors(out / kapture::layout::kSensors, dataset.sensors());
-  if (!dataset.rigs().empty()) kapture::WriteRigs(out / kapture::layout::kRigs, dataset.rigs());
-  WriteFileAtomic(out / "joins.csv", JoinsCsv(slam));
+  if (!dataset.HasRecords(kapture::kSensorCamera)) return trajectories;
+  dataset.ForEachDataRecord(kapture::kSensorCamera, [&](const kapture::DataRecord& r) {
+    const kapture::Rig* rig = dataset.rigs().RigOf(r.device_id);
+    const kapture::RigSensor* rs = rig ? rig->Find(r.device_id) : nullptr;
+    if (!rs) return;
+    bool found = false;
+    const Keyframe* from = nullptr;
+    const Pose T_world_rig = slam.PoseAt(r.timestamp, &found, &from);
+    if (!InAnchor(slam, found, from)) return;
+    trajectories.Set(r.timestamp, r.device_id, rs->sensor_from_rig * T_world_rig.Inverse());
+    ++*camera_poses;
+  });
+  return trajectories;
+}
 
+// The anchor part's keyframes at their optimised poses, downsampled.
+Cloud AnchorMap(const Slam& slam, double voxel_m) {
   Cloud map;
-  for (const auto& kf : keyframes) {
-    if (slam.ComponentOf(kf.sequence) != anchor) continue;
+  for (const auto& kf : slam.keyframes()) {
+    if (slam.ComponentOf(kf.sequence) != slam.AnchorComponent()) continue;
     Cloud c = kf.cloud;
-    Transform(graph.nodes.at(kf.id), &c);
+    Transform(slam.graph().nodes.at(kf.id), &c);
     map.points.insert(map.points.end(), c.points.begin(), c.points.end());
   }
-  map = VoxelDownsample(map, o.map_voxel_m);
-  WritePcd(out / "map.pcd", map);
-  WritePly(out / "map.ply", map);
-  WriteG2o(out / "pose_graph.g2o", graph);
+  return VoxelDownsample(map, voxel_m);
+}
 
+// The keyframes top-down before and after optimisation, with the loops.
+void WriteTrajectoryPlot(const Slam& slam, const fs::path& stem) {
+  const PoseGraph& graph = slam.graph();
   std::vector<PlotSequence> plot_before, plot_after;
   std::vector<std::pair<int, int>> loops;
   for (const auto& e : graph.edges)
     if (e.loop) loops.emplace_back(e.from, e.to);
-  for (const auto& kf : keyframes) {
+  for (const auto& kf : slam.keyframes()) {
     if (plot_after.empty() || plot_after.back().name != kf.sequence) {
       plot_before.push_back({kf.sequence, {}, {}});
       plot_after.push_back({kf.sequence, {}, {}});
@@ -163,18 +161,13 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
     plot_after.back().ids.push_back(kf.id);
     plot_after.back().xy.push_back(graph.nodes.at(kf.id).t.head<2>());
   }
-  WriteTopDown(out / "trajectories", plot_before, plot_after, loops);
+  WriteTopDown(stem, plot_before, plot_after, loops);
+}
 
-  int loop_edges = 0, cross = 0;
-  for (const auto& e : graph.edges) {
-    if (!e.loop) continue;
-    ++loop_edges;
-    if (keyframes[e.from].sequence != keyframes[e.to].sequence) ++cross;
-  }
-  std::set<std::string> sequences;
-  for (const auto& kf : keyframes) sequences.insert(kf.sequence);
-  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius_m, slam.threads(),
-                                                     o.map_residual_stride);
+// slam.json's "loops": each loop edge's keyframes, times and positions.
+std::string LoopsJson(const Slam& slam) {
+  const PoseGraph& graph = slam.graph();
+  const auto& keyframes = slam.keyframes();
   std::ostringstream loops_json;
   loops_json.precision(16);
   for (const auto& e : graph.edges) {
@@ -186,6 +179,24 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
                << ", \"from_time\": " << a.timestamp << ", \"to_time\": " << b.timestamp << ", \"from_xy\": ["
                << pa.x() << ", " << pa.y() << "], \"to_xy\": [" << pb.x() << ", " << pb.y() << "]}";
   }
+  return loops_json.str();
+}
+
+// One join attempt's frames (joins_json: the stream it is written into).
+void WriteJoinFrames(const JoinAttempt& at, std::ostringstream& joins_json) {
+  for (size_t i = 0; i < at.frames.size(); ++i) {
+    const JoinHypothesis& h = at.frames[i];
+    joins_json << (i ? ", " : "") << "{\"x\": " << h.T_A_B.t.x() << ", \"y\": " << h.T_A_B.t.y()
+               << ", \"z\": " << h.T_A_B.t.z() << ", \"yaw_deg\": " << YawOf(h.T_A_B) * 180.0 / M_PI
+               << ", \"start_offset_m\": " << h.start_offset_m << ", \"support\": " << h.support
+               << ", \"evidence\": " << EvidenceJson(h.evidence);
+    if (h.tried) joins_json << ", \"on_trial\": " << EvidenceJson(h.after);
+    joins_json << "}";
+  }
+}
+
+// slam.json's "join_attempts_detail".
+std::string JoinsJson(const Slam& slam) {
   std::ostringstream joins_json;
   for (const auto& at : slam.join_attempts()) {
     joins_json << (joins_json.tellp() > 0 ? ",\n    " : "\n    ") << "{\"round\": " << at.round << ", \"a\": \""
@@ -195,52 +206,99 @@ std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
     if (at.rival >= 0) joins_json << ", \"rival\": " << EvidenceJson(JoinAttempt::Decisive(at.frames[at.rival]));
     joins_json << ", \"predicted_found\": " << at.predicted_found << ", \"predicted_tested\": " << at.predicted_tested
                << ", \"frames\": [";
-    for (size_t i = 0; i < at.frames.size(); ++i) {
-      const JoinHypothesis& h = at.frames[i];
-      joins_json << (i ? ", " : "") << "{\"x\": " << h.T_A_B.t.x() << ", \"y\": " << h.T_A_B.t.y()
-                 << ", \"z\": " << h.T_A_B.t.z() << ", \"yaw_deg\": " << YawOf(h.T_A_B) * 180.0 / M_PI
-                 << ", \"start_offset_m\": " << h.start_offset_m << ", \"support\": " << h.support
-                 << ", \"evidence\": " << EvidenceJson(h.evidence);
-      if (h.tried) joins_json << ", \"on_trial\": " << EvidenceJson(h.after);
-      joins_json << "}";
-    }
+    WriteJoinFrames(at, joins_json);
     joins_json << "]}";
   }
-  const SlamStats& st = slam.stats();
-  StepTimes steps = st.steps;
-  const auto now = std::chrono::steady_clock::now();
-  steps.emplace_back("outputs", std::chrono::duration<double>(now - outputs_start).count());
-  const double seconds = std::chrono::duration<double>(now - start).count();
+  return joins_json.str();
+}
+
+std::string StepsJson(const StepTimes& steps) {
   std::ostringstream steps_json;
   steps_json.precision(6);
   for (const auto& [name, t] : steps)
     steps_json << (steps_json.tellp() > 0 ? ", " : "") << "\"" << name << "\": " << t;
+  return steps_json.str();
+}
+
+// What slam.json counts besides the slam's own statistics.
+struct OutputCounts {
+  size_t scans = 0, sequences = 0, map_points = 0;
+  int loop_edges = 0, cross = 0;  // loop edges, those across sequences
+  int64_t camera_poses = 0;
+};
+
+OutputCounts CountLoops(const Slam& slam) {
+  OutputCounts n;
+  for (const auto& e : slam.graph().edges) {
+    if (!e.loop) continue;
+    ++n.loop_edges;
+    if (slam.keyframes()[e.from].sequence != slam.keyframes()[e.to].sequence) ++n.cross;
+  }
+  std::set<std::string> sequences;
+  for (const auto& kf : slam.keyframes()) sequences.insert(kf.sequence);
+  n.sequences = sequences.size();
+  return n;
+}
+
+std::string SlamJson(const Slam& slam, const SlamOptions& o, const OutputCounts& n, const PlaneResidualStats& crisp,
+                     const std::string& steps_json, double seconds) {
+  const SlamStats& st = slam.stats();
   std::ostringstream j;
   j.precision(10);
-  j << "{\n  \"scans\": " << scans.size() << ",\n  \"keyframes\": " << keyframes.size()
-    << ",\n  \"sequences\": " << sequences.size() << ",\n  \"sequential_edges\": "
-    << graph.edges.size() - loop_edges << ",\n  \"sequential_odometry_fallbacks\": " << st.sequential_fallbacks
-    << ",\n  \"loop_edges\": " << loop_edges << ",\n  \"cross_sequence_loop_edges\": " << cross
+  j << "{\n  \"scans\": " << n.scans << ",\n  \"keyframes\": " << slam.keyframes().size()
+    << ",\n  \"sequences\": " << n.sequences << ",\n  \"sequential_edges\": "
+    << slam.graph().edges.size() - n.loop_edges << ",\n  \"sequential_odometry_fallbacks\": " << st.sequential_fallbacks
+    << ",\n  \"loop_edges\": " << n.loop_edges << ",\n  \"cross_sequence_loop_edges\": " << n.cross
     << ",\n  \"loop_candidates_tested\": " << st.loop_tests << ",\n  \"joins\": " << st.joins
     << ",\n  \"join_attempts\": " << st.join_attempts << ",\n  \"join_candidates_tested\": " << st.join_tests
     << ",\n  \"odometry_yaw_scale\": {" << YawScalesJson(st.odometry_yaw_scale) << "}"
     << ",\n  \"sequential_reregistered\": " << st.sequential_reregistered
     << ",\n  \"join_trials\": " << st.join_trials << ",\n  \"join_rejected_loops\": " << st.join_rejected_loops << ",\n  \"initial_cost\": " << st.summary.initial_cost
-    << ",\n  \"final_cost\": " << st.summary.final_cost << ",\n  \"camera_poses\": " << camera_poses
+    << ",\n  \"final_cost\": " << st.summary.final_cost << ",\n  \"camera_poses\": " << n.camera_poses
     << ",\n  \"information_fallbacks\": " << st.information_fallbacks << ",\n  \"refinements\": " << st.refinements
-    << ",\n  \"refinements_rejected\": " << st.refinements_rejected << ",\n  \"map_points\": " << map.size()
+    << ",\n  \"refinements_rejected\": " << st.refinements_rejected << ",\n  \"map_points\": " << n.map_points
     << ",\n  \"map_plane_residual\": {\"k\": " << o.map_residual_k << ", \"radius\": " << o.map_residual_radius_m
     << ", \"stride\": " << o.map_residual_stride
     << ", \"points\": " << crisp.points << ", \"skipped\": " << crisp.skipped << ", \"mean\": " << crisp.mean
     << ", \"median\": " << crisp.median << ", \"rmse\": " << crisp.rmse << ", \"p90\": " << crisp.p90 << "}"
-    << ",\n  \"join_attempts_detail\": [" << joins_json.str() << "\n  ]"
-    << ",\n  \"loops\": [" << loops_json.str() << "\n  ]"
-    << ",\n  \"step_seconds\": {" << steps_json.str() << "}"
+    << ",\n  \"join_attempts_detail\": [" << JoinsJson(slam) << "\n  ]"
+    << ",\n  \"loops\": [" << LoopsJson(slam) << "\n  ]"
+    << ",\n  \"step_seconds\": {" << steps_json << "}"
     << ",\n  \"seconds\": " << seconds
-    << ",\n  \"scans_per_second\": " << scans.size() / std::max(seconds, 1e-9) << "\n}\n";
-  WriteFileAtomic(out / "slam.json", j.str());
-  return std::to_string(loop_edges) + " loop edges (" + std::to_string(cross) + " across sequences), " +
-         st.summary.report;
+    << ",\n  \"scans_per_second\": " << n.scans / std::max(seconds, 1e-9) << "\n}\n";
+  return j.str();
+}
+
+}  // namespace
+
+std::string WriteSlamOutputs(const Slam& slam, const SlamOptions& o,
+                             const std::vector<kapture::DataRecord>& scans, const kapture::Kapture& dataset,
+                             const fs::path& out, std::chrono::steady_clock::time_point start) {
+  const auto outputs_start = std::chrono::steady_clock::now();
+  OutputCounts n = CountLoops(slam);
+  n.scans = scans.size();
+  const kapture::Trajectories trajectories = AnchorTrajectories(slam, scans, dataset, &n.camera_poses);
+  kapture::WriteTrajectories(out / kapture::layout::kTrajectories, trajectories);
+  kapture::WriteSensors(out / kapture::layout::kSensors, dataset.sensors());
+  if (!dataset.rigs().empty()) kapture::WriteRigs(out / kapture::layout::kRigs, dataset.rigs());
+  WriteFileAtomic(out / "joins.csv", JoinsCsv(slam));
+
+  const Cloud map = AnchorMap(slam, o.map_voxel_m);
+  n.map_points = map.size();
+  WritePcd(out / "map.pcd", map);
+  WritePly(out / "map.ply", map);
+  WriteG2o(out / "pose_graph.g2o", slam.graph());
+  WriteTrajectoryPlot(slam, out / "trajectories");
+
+  const PlaneResidualStats crisp = MapPlaneResidual(map, o.map_residual_k, o.map_residual_radius_m, slam.threads(),
+                                                     o.map_residual_stride);
+  StepTimes steps = slam.stats().steps;
+  const auto now = std::chrono::steady_clock::now();
+  steps.emplace_back("outputs", std::chrono::duration<double>(now - outputs_start).count());
+  const double seconds = std::chrono::duration<double>(now - start).count();
+  WriteFileAtomic(out / "slam.json", SlamJson(slam, o, n, crisp, StepsJson(steps), seconds));
+  return std::to_string(n.loop_edges) + " loop edges (" + std::to_string(n.cross) + " across sequences), " +
+         slam.stats().summary.report;
 }
 
 }  // namespace locforge::lidar

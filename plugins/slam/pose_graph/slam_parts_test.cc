@@ -8,6 +8,7 @@
 #include "join.h"
 #include "keyframes.h"
 #include "loop_search.h"
+#include "slam.h"
 
 namespace locforge::lidar {
 namespace {
@@ -290,6 +291,25 @@ TEST(JoinDecision, ClustersAgreeingLoopsIntoOneFrame) {
   EXPECT_EQ(h[0].loops, (std::vector<int>{1, 0, 3}));  // best overlap first
   EXPECT_EQ(h[0].support, 2);                          // keyframes 1 and 2
   EXPECT_EQ(h[1].loops, (std::vector<int>{2}));
+}
+
+// The headings a join seeds at B's start besides its turns: one two loops
+// agree on (first time seen), not one a single loop found, not a turn already
+// tried, not one chosen already.
+TEST(JoinSearch, PlaceHeadingsNeedTwoAgreeingLoopsAndAreNewOnly) {
+  auto loop = [](double deg) {
+    JoinCandidate c;
+    c.T_A_B = YawPose(deg * M_PI / 180);
+    return c;
+  };
+  const std::vector<double> turns = {0, M_PI / 2, M_PI, -M_PI / 2};
+  const std::vector<JoinCandidate> loops = {loop(30), loop(120), loop(31), loop(90), loop(89.5), loop(200), loop(-160.5)};
+  const std::vector<double> h = PlaceHeadings(loops, turns, 2);
+  ASSERT_EQ(h.size(), 2u);
+  EXPECT_NEAR(h[0], 30 * M_PI / 180, 1e-9);
+  EXPECT_NEAR(h[1], -160 * M_PI / 180, 1e-9);  // 200 deg, wrapped
+  EXPECT_TRUE(PlaceHeadings(loops, turns, 0.1).empty());  // no two loops within 0.1 deg
+  EXPECT_TRUE(PlaceHeadings({}, turns, 2).empty());
 }
 
 }  // namespace

@@ -326,98 +326,102 @@ struct SequenceWork {
   std::vector<std::pair<size_t, double>> scans;      // (lidar index, start time)
 };
 
-}  // namespace
-
-DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int threads, const Hooks& hooks) {
-  std::string why;
-  if (!o.Check(&why)) throw ParamError(why);
-  threads = std::max(1, threads);
-  const auto log = [&](const std::string& m) { if (hooks.log) hooks.log(m); };
-
-  const SceneSpec spec = o.scene_file.empty() ? GenerateFloor(o.floor, o.seed) : LoadSceneSpec(o.scene_file);
-  const Scene scene = BuildScene(spec);
-  Rig rig = MakeRig(o.rig, o.seed);
-  rig.wheels = o.wheels;
-  TextureLibrary textures(o.texture_size);
-  log("scene: " + std::to_string(scene.quads.size()) + " quads, " + std::to_string(scene.materials.size()) +
-      " materials, floor " + FormatNumber(spec.x1 - spec.x0) + " x " + FormatNumber(spec.y1 - spec.y0) + " m");
-
-  // Plan every sequence first (cheap) so progress has a total.
-  std::vector<SequenceWork> work;
-  uint64_t total = 0;
-  std::vector<Trajectory> mapping;  // PlanSequences lists the mapping sequences first
-  std::vector<Path2d> mapped;
-  double split_x = spec.query_split_x;
-  for (const SequencePlan& plan : PlanSequences(o)) {
-    SequenceWork w;
-    w.plan = plan;
-    if (plan.split != "mapping" && mapped.empty() && !mapping.empty()) {
-      mapped = MappedPaths(mapping, 1.0);
-      split_x = QuerySplitX(spec, mapped);
-    }
-    w.trajectory = PlanTrajectory(spec, o, plan, rig.wheels, mapping, mapped, split_x);
-    if (plan.split == "mapping") mapping.push_back(w.trajectory);
-    const double duration = w.trajectory.duration();
-    for (size_t c = 0; o.cameras && c < rig.cameras.size(); ++c)
-      for (const Capture& cap : CaptureTimes(rig.cameras[c], duration, Mix(plan.seed, 100 + c)))
-        w.captures.emplace_back(c, cap);
-    if (o.lidar)
-      for (size_t l = 0; l < rig.lidars.size(); ++l)
-        for (int k = 0; (k + 1) / rig.lidars[l].rate_hz <= duration; ++k)
-          w.scans.emplace_back(l, k / rig.lidars[l].rate_hz);
-    total += w.captures.size() + w.scans.size();
-    work.push_back(std::move(w));
+// One dataset's generation: the scene, the rig and every sequence's plan,
+// then each sequence simulated into its kapture rows and files.
+struct DatasetMaker {
+  DatasetMaker(const SimOptions& o, const fs::path& out, int threads, const Hooks& hooks)
+      : o(o),
+        out(out),
+        threads(threads),
+        hooks(hooks),
+        spec(o.scene_file.empty() ? GenerateFloor(o.floor, o.seed) : LoadSceneSpec(o.scene_file)),
+        scene(BuildScene(spec)),
+        rig(MakeRig(o.rig, o.seed)),
+        textures(o.texture_size),
+        truth(out / "truth") {
+    rig.wheels = o.wheels;
   }
 
+  const SimOptions& o;
+  const fs::path& out;
+  const int threads;
+  const Hooks& hooks;
+  const SceneSpec spec;
+  const Scene scene;
+  Rig rig;
+  TextureLibrary textures;
+  const fs::path truth;
+  std::vector<SequenceWork> work;
+  uint64_t total = 0;
+  std::atomic<uint64_t> done{0};
   DatasetSummary summary;
   std::map<std::string, KaptureRows> kaptures;  // by folder
-  std::atomic<uint64_t> done{0};
-  const auto tick = [&] {
-    const uint64_t d = ++done;
-    if (hooks.progress) hooks.progress(d, total);
-  };
-  const fs::path truth = out / "truth";
   std::string sequences_txt =
       "# name, split, day, t0_us, duration_s, distance_m, odometry_drift, images, scans, people, person_fraction\n";
 
-  for (SequenceWork& w : work) {
-    const SequencePlan& plan = w.plan;
-    const std::string folder = Folder(o, plan.split);
-    KaptureRows& rows = kaptures[folder];
-    if (rows.sensors.empty()) {
-      AddRigSensors(rig, &rows);
-      AddRigExtrinsics(rig, &rows);
-    }
-    const fs::path root = folder.empty() ? out : out / folder;
-    const fs::path data = root / "sensors" / "records_data";
-    const Trajectory& traj = w.trajectory;
-    const double density =
-        plan.split != "mapping" && o.query_crowdedness >= 0 ? o.query_crowdedness : o.crowdedness;
-    const Crowd crowd = MakeCrowd(spec, density, Mix(plan.seed, 2));
-    const World world(scene, crowd, &textures, plan.day);
-    SequenceSummary ss;
-    ss.plan = plan;
-    ss.distance_m = traj.Distance();
-    ss.people = static_cast<int>(crowd.people().size());
+  void Log(const std::string& m) const {
+    if (hooks.log) hooks.log(m);
+  }
+  void Tick() {
+    const uint64_t d = ++done;
+    if (hooks.progress) hooks.progress(d, total);
+  }
 
-    // Platform ground truth at 10 Hz, and the wheel encoders.
+  // Plan every sequence first (cheap) so progress has a total: its path
+  // (queries after the mapping sequences, which PlanSequences lists first),
+  // its captures and its scans.
+  void PlanWork() {
+    std::vector<Trajectory> mapping;
+    std::vector<Path2d> mapped;
+    double split_x = spec.query_split_x;
+    for (const SequencePlan& plan : PlanSequences(o)) {
+      SequenceWork w;
+      w.plan = plan;
+      if (plan.split != "mapping" && mapped.empty() && !mapping.empty()) {
+        mapped = MappedPaths(mapping, 1.0);
+        split_x = QuerySplitX(spec, mapped);
+      }
+      w.trajectory = PlanTrajectory(spec, o, plan, rig.wheels, mapping, mapped, split_x);
+      if (plan.split == "mapping") mapping.push_back(w.trajectory);
+      const double duration = w.trajectory.duration();
+      for (size_t c = 0; o.cameras && c < rig.cameras.size(); ++c)
+        for (const Capture& cap : CaptureTimes(rig.cameras[c], duration, Mix(plan.seed, 100 + c)))
+          w.captures.emplace_back(c, cap);
+      if (o.lidar)
+        for (size_t l = 0; l < rig.lidars.size(); ++l)
+          for (int k = 0; (k + 1) / rig.lidars[l].rate_hz <= duration; ++k)
+            w.scans.emplace_back(l, k / rig.lidars[l].rate_hz);
+      total += w.captures.size() + w.scans.size();
+      work.push_back(std::move(w));
+    }
+  }
+
+  // Platform ground truth at 10 Hz, and the wheel encoders (with the drift
+  // their integration accumulates over the sequence).
+  void WritePlatform(const SequenceWork& w, KaptureRows& rows, SequenceSummary* ss) const {
+    const SequencePlan& plan = w.plan;
+    const Trajectory& traj = w.trajectory;
     for (double t = 0; t <= traj.duration() + 1e-9; t += 0.1)
       rows.trajectories.push_back({ToMicros(plan.t0_us, t), "rig", FormatPose(traj.PoseAt(t).Inverse())});
     const auto readings = SimulateEncoders(traj, rig.wheels, Mix(plan.seed, 3));
     for (const auto& r : readings)
-      rows.records_wheel.push_back({ToMicros(plan.t0_us, r.t), "wheels", std::to_string(r.left) + ", " + std::to_string(r.right)});
+      rows.records_wheel.push_back(
+          {ToMicros(plan.t0_us, r.t), "wheels", std::to_string(r.left) + ", " + std::to_string(r.right)});
     const auto odometry = IntegrateEncoders(readings, rig.wheels, traj.states.front());
-    if (!odometry.empty() && ss.distance_m > 0) {
+    if (!odometry.empty() && ss->distance_m > 0) {
       const PlanarState truth_end = traj.StateAt(odometry.back().t);
-      ss.odometry_drift = std::hypot(odometry.back().x - truth_end.x, odometry.back().y - truth_end.y) / ss.distance_m;
+      ss->odometry_drift =
+          std::hypot(odometry.back().x - truth_end.x, odometry.back().y - truth_end.y) / ss->distance_m;
     }
+  }
 
-    // LiDAR scans.
-    std::mutex rows_mutex;
+  void SimulateScans(const SequenceWork& w, const World& world, const fs::path& data, KaptureRows& rows,
+                     std::mutex& rows_mutex) {
+    const SequencePlan& plan = w.plan;
     ParallelFor(w.scans.size(), threads, hooks, [&](size_t i) {
       const auto& [l, start] = w.scans[i];
       const LidarOptions& lidar = rig.lidars[l];
-      const LidarScan scan = SimulateScan(world, traj, lidar, start, Mix(plan.seed, 1000000 + i));
+      const LidarScan scan = SimulateScan(world, w.trajectory, lidar, start, Mix(plan.seed, 1000000 + i));
       const Timestamp ts = ToMicros(plan.t0_us, start);
       const std::string rel = plan.name + "/" + lidar.id + "/" + std::to_string(ts) + ".pcd";
       WriteDataFile(data / rel, EncodePcd(scan));
@@ -425,19 +429,22 @@ DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int thr
         std::lock_guard<std::mutex> lock(rows_mutex);
         rows.records_lidar.push_back({ts, lidar.id, rel});
       }
-      tick();
+      Tick();
     });
-    ss.scans = static_cast<int>(w.scans.size());
+  }
 
-    // Camera images, person masks and per-camera ground truth.
+  // Camera images, person masks and per-camera ground truth: each image's
+  // person fraction.
+  std::vector<double> RenderImages(const SequenceWork& w, const World& world, const Crowd& crowd,
+                                   const fs::path& data, KaptureRows& rows, std::mutex& rows_mutex) {
+    const SequencePlan& plan = w.plan;
     const double exposure = 0.8 + 0.4 * (Mix(o.seed, 10 + plan.day) % 1000) / 1000.0;
     const double gain = 1.0 + 0.3 * (Mix(o.seed, 20 + plan.day) % 1000) / 1000.0;
     std::vector<double> person_fraction(w.captures.size(), 0);
-    const auto t_render = std::chrono::steady_clock::now();
     ParallelFor(w.captures.size(), threads, hooks, [&](size_t i) {
       const auto& [c, cap] = w.captures[i];
       const CameraOptions& cam = rig.cameras[c];
-      const Pose T_world_camera = traj.PoseAt(cap.true_time) * cam.T_platform_camera;
+      const Pose T_world_camera = w.trajectory.PoseAt(cap.true_time) * cam.T_platform_camera;
       RenderOptions ro;
       ro.exposure = exposure;
       ro.gain = gain;
@@ -455,28 +462,72 @@ DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int thr
         rows.records_camera.push_back({ts, cam.id, stem + "." + o.image_format});
         rows.trajectories.push_back({ts, cam.id, FormatPose(T_world_camera.Inverse())});
       }
-      tick();
+      Tick();
     });
-    summary.render_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_render).count();
-    ss.images = static_cast<int>(w.captures.size());
-    for (double f : person_fraction) ss.person_fraction += f / std::max<size_t>(1, person_fraction.size());
-    summary.images += ss.images;
-    summary.scans += ss.scans;
+    return person_fraction;
+  }
+
+  // The sequence's line of truth/sequences.txt and of the log.
+  void Record(const SequencePlan& plan, const Trajectory& traj, const SequenceSummary& ss) {
     char line[512];
     std::snprintf(line, sizeof(line), "%s, %s, %d, %lld, %.3f, %.3f, %.5f, %d, %d, %d, %.5f\n", plan.name.c_str(),
                   plan.split.c_str(), plan.day, static_cast<long long>(plan.t0_us), traj.duration(), ss.distance_m,
                   ss.odometry_drift, ss.images, ss.scans, ss.people, ss.person_fraction);
     sequences_txt += line;
-    log(plan.name + " (" + plan.split + ", day " + std::to_string(plan.day) + "): " + FormatNumber(std::round(ss.distance_m * 10) / 10) +
-        " m, " + std::to_string(ss.images) + " images, " + std::to_string(ss.scans) + " scans, " +
-        std::to_string(ss.people) + " people");
-    summary.sequences.push_back(ss);
+    Log(plan.name + " (" + plan.split + ", day " + std::to_string(plan.day) +
+        "): " + FormatNumber(std::round(ss.distance_m * 10) / 10) + " m, " + std::to_string(ss.images) +
+        " images, " + std::to_string(ss.scans) + " scans, " + std::to_string(ss.people) + " people");
   }
 
-  for (auto& [folder, rows] : kaptures) WriteKaptureText(folder.empty() ? out : out / folder, std::move(rows));
-  WriteCalibration(truth / "calibration.yaml", rig);
-  WriteFileAtomic(truth / "sequences.txt", sequences_txt);
-  return summary;
+  void Simulate(const SequenceWork& w) {
+    const SequencePlan& plan = w.plan;
+    const std::string folder = Folder(o, plan.split);
+    KaptureRows& rows = kaptures[folder];
+    if (rows.sensors.empty()) {
+      AddRigSensors(rig, &rows);
+      AddRigExtrinsics(rig, &rows);
+    }
+    const fs::path root = folder.empty() ? out : out / folder;
+    const fs::path data = root / "sensors" / "records_data";
+    const double density =
+        plan.split != "mapping" && o.query_crowdedness >= 0 ? o.query_crowdedness : o.crowdedness;
+    const Crowd crowd = MakeCrowd(spec, density, Mix(plan.seed, 2));
+    const World world(scene, crowd, &textures, plan.day);
+    SequenceSummary ss;
+    ss.plan = plan;
+    ss.distance_m = w.trajectory.Distance();
+    ss.people = static_cast<int>(crowd.people().size());
+    WritePlatform(w, rows, &ss);
+    std::mutex rows_mutex;
+    SimulateScans(w, world, data, rows, rows_mutex);
+    ss.scans = static_cast<int>(w.scans.size());
+    const auto t_render = std::chrono::steady_clock::now();
+    const std::vector<double> person_fraction = RenderImages(w, world, crowd, data, rows, rows_mutex);
+    summary.render_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_render).count();
+    ss.images = static_cast<int>(w.captures.size());
+    for (double f : person_fraction) ss.person_fraction += f / std::max<size_t>(1, person_fraction.size());
+    summary.images += ss.images;
+    summary.scans += ss.scans;
+    Record(plan, w.trajectory, ss);
+    summary.sequences.push_back(ss);
+  }
+};
+
+}  // namespace
+
+DatasetSummary GenerateDataset(const SimOptions& o, const fs::path& out, int threads, const Hooks& hooks) {
+  std::string why;
+  if (!o.Check(&why)) throw ParamError(why);
+  DatasetMaker m(o, out, std::max(1, threads), hooks);
+  m.Log("scene: " + std::to_string(m.scene.quads.size()) + " quads, " + std::to_string(m.scene.materials.size()) +
+        " materials, floor " + FormatNumber(m.spec.x1 - m.spec.x0) + " x " + FormatNumber(m.spec.y1 - m.spec.y0) +
+        " m");
+  m.PlanWork();
+  for (const SequenceWork& w : m.work) m.Simulate(w);
+  for (auto& [folder, rows] : m.kaptures) WriteKaptureText(folder.empty() ? out : out / folder, std::move(rows));
+  WriteCalibration(m.truth / "calibration.yaml", m.rig);
+  WriteFileAtomic(m.truth / "sequences.txt", m.sequences_txt);
+  return m.summary;
 }
 
 }  // namespace locforge::sim

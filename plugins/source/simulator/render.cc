@@ -49,6 +49,68 @@ std::vector<Cylinder> VisiblePeople(const std::vector<Cylinder>& people, const P
   return out;
 }
 
+// The output sized w x h (cleared when it was not).
+void SizeOutput(int w, int h, RenderedImage* out) {
+  if (out->width != w || out->height != h || out->rgb.size() != size_t(w) * h * 3) {
+    out->width = w;
+    out->height = h;
+    out->rgb.assign(size_t(w) * h * 3, 0);
+    out->person_mask.assign(size_t(w) * h, 0);
+    out->depth.assign(size_t(w) * h, 0.f);
+  }
+}
+
+// The fast path: the quads and people each tile of pixels may see.
+void FillTiles(const std::vector<Quad>& quads, const std::vector<Cylinder>& visible, ScreenTiles* quad_tiles,
+               ScreenTiles* people_tiles) {
+  for (int i = 0; i < static_cast<int>(quads.size()); ++i) {
+    const Quad& q = quads[i];
+    const Eigen::Vector3d corners[4] = {q.origin, q.origin + q.u_edge, q.origin + q.v_edge,
+                                        q.origin + q.u_edge + q.v_edge};
+    quad_tiles->Add(i, corners, 4);
+  }
+  for (int k = 0; k < static_cast<int>(visible.size()); ++k) {
+    const Cylinder& c = visible[k];
+    Eigen::Vector3d corners[8];
+    for (int j = 0; j < 8; ++j)
+      corners[j] = {c.center.x() + (j & 1 ? c.radius : -c.radius), c.center.y() + (j & 2 ? c.radius : -c.radius),
+                    j & 4 ? c.z1 : c.z0};
+    people_tiles->Add(k, corners, 8);
+  }
+}
+
+// The colour of a hit seen along d: the albedo at the pixel's footprint,
+// shaded by the key light, with the ceiling lights' mirror-like highlight on
+// glossy surfaces (view dependent).
+Eigen::Vector3f Shade(const World& world, const Hit& hit, const Eigen::Vector3d& d, double pixel_angle,
+                      bool shading) {
+  const double cos_view = std::max(0.25, std::abs(hit.normal.dot(d)));
+  Eigen::Vector3f color = world.Albedo(hit, hit.t * pixel_angle / cos_view);
+  if (shading) {
+    color *= static_cast<float>(0.55 + 0.45 * std::abs(hit.normal.dot(kKeyLight)));
+    if (world.Glossy(hit)) {
+      const Eigen::Vector3d r = d - 2 * d.dot(hit.normal) * hit.normal;
+      const double spec = std::pow(std::max(0.0, r.z()), 12.0) + 0.25 * std::pow(std::max(0.0, r.dot(kKeyLight)), 40.0);
+      color = 0.6f * color + Eigen::Vector3f::Constant(static_cast<float>(200 * spec));
+    }
+  }
+  return color;
+}
+
+// Pixel i: the colour exposed, with noise, as bytes; the person mask; the
+// depth (ray length -> z).
+void WritePixel(size_t i, const Eigen::Vector3f& color, const Hit& hit, double depth_along_ray, const RenderOptions& o,
+                RenderedImage* out) {
+  const float scale = static_cast<float>(o.exposure * o.gain);
+  for (int c = 0; c < 3; ++c) {
+    float v = color[c] * scale;
+    if (o.noise_sigma > 0) v += static_cast<float>(o.noise_sigma * o.gain) * PixelNoise(o.noise_seed, i * 3 + c);
+    out->rgb[i * 3 + c] = static_cast<uint8_t>(std::clamp(v + 0.5f, 0.f, 255.f));
+  }
+  out->person_mask[i] = hit.person >= 0 ? 255 : 0;
+  out->depth[i] = hit.hit() ? static_cast<float>(depth_along_ray) : 0.f;
+}
+
 }  // namespace
 
 double RenderedImage::PersonFraction() const {
@@ -62,37 +124,15 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
             const Pose& T_world_camera, const RenderOptions& o, RenderedImage* out, int row_begin,
             int row_end) {
   const int w = camera.width, h = camera.height;
-  if (out->width != w || out->height != h || out->rgb.size() != size_t(w) * h * 3) {
-    out->width = w;
-    out->height = h;
-    out->rgb.assign(size_t(w) * h * 3, 0);
-    out->person_mask.assign(size_t(w) * h, 0);
-    out->depth.assign(size_t(w) * h, 0.f);
-  }
+  SizeOutput(w, h, out);
   if (row_end < 0 || row_end > h) row_end = h;
   const std::vector<Cylinder> visible = VisiblePeople(people, camera, T_world_camera);
   const Eigen::Matrix3d R = T_world_camera.R();
   const Eigen::Vector3d origin = T_world_camera.t;
-  // The fast path: the quads and people each tile of pixels may see.
   ScreenTiles quad_tiles(camera, T_world_camera, row_begin, row_end);
   ScreenTiles people_tiles(camera, T_world_camera, row_begin, row_end);
   const std::vector<Quad>& quads = world.quads();
-  if (!o.reference_raycast) {
-    for (int i = 0; i < static_cast<int>(quads.size()); ++i) {
-      const Quad& q = quads[i];
-      const Eigen::Vector3d corners[4] = {q.origin, q.origin + q.u_edge, q.origin + q.v_edge,
-                                          q.origin + q.u_edge + q.v_edge};
-      quad_tiles.Add(i, corners, 4);
-    }
-    for (int k = 0; k < static_cast<int>(visible.size()); ++k) {
-      const Cylinder& c = visible[k];
-      Eigen::Vector3d corners[8];
-      for (int j = 0; j < 8; ++j)
-        corners[j] = {c.center.x() + (j & 1 ? c.radius : -c.radius), c.center.y() + (j & 2 ? c.radius : -c.radius),
-                      j & 4 ? c.z1 : c.z0};
-      people_tiles.Add(k, corners, 8);
-    }
-  }
+  if (!o.reference_raycast) FillTiles(quads, visible, &quad_tiles, &people_tiles);
   quad_tiles.Finish(true);     // nearest first: a pixel stops at the first quad beyond its hit
   people_tiles.Finish(false);  // in Cast's order
   const auto cast = [&](int x, int y, const Eigen::Vector3d& d, Hit* hit) {
@@ -110,34 +150,13 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
     return hit->hit();
   };
   const double pixel_angle = 1.0 / camera.fx;
-  const float scale = static_cast<float>(o.exposure * o.gain);
   for (int y = row_begin; y < row_end; ++y)
     for (int x = 0; x < w; ++x) {
       const Eigen::Vector3d d = (R * camera.Ray(x + 0.5, y + 0.5)).normalized();
       Hit hit;
       Eigen::Vector3f color = Eigen::Vector3f::Zero();
-      if (cast(x, y, d, &hit)) {
-        const double cos_view = std::max(0.25, std::abs(hit.normal.dot(d)));
-        color = world.Albedo(hit, hit.t * pixel_angle / cos_view);
-        if (o.shading) {
-          color *= static_cast<float>(0.55 + 0.45 * std::abs(hit.normal.dot(kKeyLight)));
-          if (world.Glossy(hit)) {
-            // Mirror-like highlight of the ceiling lights: view dependent.
-            const Eigen::Vector3d r = d - 2 * d.dot(hit.normal) * hit.normal;
-            const double spec = std::pow(std::max(0.0, r.z()), 12.0) + 0.25 * std::pow(std::max(0.0, r.dot(kKeyLight)), 40.0);
-            color = 0.6f * color + Eigen::Vector3f::Constant(static_cast<float>(200 * spec));
-          }
-        }
-      }
-      const size_t i = size_t(y) * w + x;
-      for (int c = 0; c < 3; ++c) {
-        float v = color[c] * scale;
-        if (o.noise_sigma > 0)
-          v += static_cast<float>(o.noise_sigma * o.gain) * PixelNoise(o.noise_seed, i * 3 + c);
-        out->rgb[i * 3 + c] = static_cast<uint8_t>(std::clamp(v + 0.5f, 0.f, 255.f));
-      }
-      out->person_mask[i] = hit.person >= 0 ? 255 : 0;
-      out->depth[i] = hit.hit() ? static_cast<float>(hit.t * d.dot(R.col(2))) : 0.f;  // ray length -> z
+      if (cast(x, y, d, &hit)) color = Shade(world, hit, d, pixel_angle, o.shading);
+      WritePixel(size_t(y) * w + x, color, hit, hit.hit() ? hit.t * d.dot(R.col(2)) : 0.0, o, out);
     }
 }
 

@@ -44,24 +44,11 @@ SahBvh::SahBvh(const std::vector<Quad>& quads) : quads_(quads) {
   if (!quads.empty()) root_ = Build(0, static_cast<int>(quads.size()), 0, boxes, centroids, &root_box_);
 }
 
-int SahBvh::Build(int first, int count, int depth, const std::vector<Box>& boxes,
-                  const std::vector<Eigen::Vector3d>& centroids, Box* bounds) {
-  depth_ = std::max(depth_, depth);
-  Box all, centres;
-  for (int i = first; i < first + count; ++i) {
-    all.Grow(boxes[order_[i]]);
-    centres.Grow({centroids[order_[i]], centroids[order_[i]]});
-  }
-  *bounds = all;
-  const auto make_leaf = [&] {
-    leaves_.push_back({first, count});
-    return -static_cast<int>(leaves_.size());
-  };
-  if (count <= kLeafSize || depth >= kMaxDepth - 1) return make_leaf();
-
-  // The cheapest split of the centroids into kBins slabs along one axis.
-  double best_cost = kInf;
-  int best_axis = -1, best_bin = 0;
+// The centroids in kBins slabs along each axis; for each boundary, the
+// boxes' areas times their counts on both sides.
+void SahBvh::CheapestSplit(int first, int count, const Box& centres, const std::vector<Box>& boxes,
+                           const std::vector<Eigen::Vector3d>& centroids, double* best_cost, int* best_axis,
+                           int* best_bin) const {
   for (int axis = 0; axis < 3; ++axis) {
     const double lo = centres.lo[axis], extent = centres.hi[axis] - lo;
     if (!(extent > 0)) continue;
@@ -89,13 +76,33 @@ int SahBvh::Build(int first, int count, int depth, const std::vector<Box>& boxes
       n += bin_count[b];
       if (n == 0 || right_count[b + 1] == 0) continue;
       const double cost = acc.Area() * n + right_area[b + 1] * right_count[b + 1];
-      if (cost < best_cost) {
-        best_cost = cost;
-        best_axis = axis;
-        best_bin = b;
+      if (cost < *best_cost) {
+        *best_cost = cost;
+        *best_axis = axis;
+        *best_bin = b;
       }
     }
   }
+}
+
+int SahBvh::Build(int first, int count, int depth, const std::vector<Box>& boxes,
+                  const std::vector<Eigen::Vector3d>& centroids, Box* bounds) {
+  depth_ = std::max(depth_, depth);
+  Box all, centres;
+  for (int i = first; i < first + count; ++i) {
+    all.Grow(boxes[order_[i]]);
+    centres.Grow({centroids[order_[i]], centroids[order_[i]]});
+  }
+  *bounds = all;
+  const auto make_leaf = [&] {
+    leaves_.push_back({first, count});
+    return -static_cast<int>(leaves_.size());
+  };
+  if (count <= kLeafSize || depth >= kMaxDepth - 1) return make_leaf();
+
+  double best_cost = kInf;
+  int best_axis = -1, best_bin = 0;
+  CheapestSplit(first, count, centres, boxes, centroids, &best_cost, &best_axis, &best_bin);
   const double area = all.Area();
   const bool worth_it = area > 0 && kTraversalCost + best_cost / area < count;
   int mid;

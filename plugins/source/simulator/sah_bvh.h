@@ -71,6 +71,11 @@ class SahBvh {
 
   int Build(int first, int count, int depth, const std::vector<Box>& boxes,
             const std::vector<Eigen::Vector3d>& centroids, Box* bounds);
+  // The cheapest split of order_[first, first + count) (surface area
+  // heuristic over binned centroids): its cost, axis (-1: none) and last left bin.
+  void CheapestSplit(int first, int count, const Box& centres, const std::vector<Box>& boxes,
+                     const std::vector<Eigen::Vector3d>& centroids, double* best_cost, int* best_axis,
+                     int* best_bin) const;
 
   const std::vector<Quad>& quads_;
   std::vector<int> order_;

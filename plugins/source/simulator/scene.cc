@@ -229,131 +229,167 @@ void DecorateFace(const Eigen::Vector3d& face_center, const Eigen::Vector3d& nor
   }
 }
 
+// One generated floor: a grid of shop blocks between corridors, drawn from
+// one random stream in a fixed order (the draws' order is the floor: keep it).
+struct FloorMaker {
+  FloorMaker(const FloorOptions& o, uint64_t seed)
+      : o(o), rng(seed * 0x9E3779B97F4A7C15ull + 17), u01(0, 1),
+        pitch_x(o.block_x + o.corridor), pitch_y(o.block_y + o.corridor) {}
+
+  const FloorOptions& o;
+  std::mt19937_64 rng;
+  std::uniform_real_distribution<double> u01;
+  const double pitch_x, pitch_y;
+  SceneSpec s;
+  int poster_counter = 0;
+  std::vector<PanelSpec> twin_panels;  // panels of the first block, relative to its centre
+
+  int Node(int i, int j) const { return j * (o.blocks_x + 1) + i; }
+
+  void Outline() {
+    s.x0 = 0;
+    s.y0 = 0;
+    s.x1 = o.blocks_x * o.block_x + (o.blocks_x + 1) * o.corridor;
+    s.y1 = o.blocks_y * o.block_y + (o.blocks_y + 1) * o.corridor;
+    s.height = o.height;
+    s.floor = {Key("tiles", static_cast<int>(rng() % 3))};
+    s.wall = {Key("bricks", static_cast<int>(rng() % 3))};
+    s.ceiling = {Key("ceiling", 0)};
+    s.lower_floor = {Key("tiles", 3)};
+  }
+
+  // Walk graph: corridor intersections; the start at the one nearest the middle.
+  void WalkGraph() {
+    for (int j = 0; j <= o.blocks_y; ++j)
+      for (int i = 0; i <= o.blocks_x; ++i)
+        s.walk.nodes.emplace_back(o.corridor / 2 + i * pitch_x, o.corridor / 2 + j * pitch_y);
+    for (int j = 0; j <= o.blocks_y; ++j)
+      for (int i = 0; i <= o.blocks_x; ++i) {
+        if (i < o.blocks_x) s.walk.edges.emplace_back(Node(i, j), Node(i + 1, j));
+        if (j < o.blocks_y) s.walk.edges.emplace_back(Node(i, j), Node(i, j + 1));
+      }
+    s.start_node = s.walk.Nearest({0.5 * (s.x0 + s.x1), 0.5 * (s.y0 + s.y1)});
+    s.query_split_x = s.walk.nodes[s.start_node].x() + 0.5 * o.corridor;
+  }
+
+  // A floor opening in place of the block at c, with a railing around it.
+  void Opening(const Eigen::Vector3d& c) {
+    HoleSpec h{c.x() - o.block_x / 2 + 0.5, c.y() - o.block_y / 2 + 0.5,
+               c.x() + o.block_x / 2 - 0.5, c.y() + o.block_y / 2 - 0.5};
+    s.holes.push_back(h);
+    const double rw = h.x1 - h.x0, rl = h.y1 - h.y0;
+    const Material rail{"glossy:0", true};
+    s.boxes.push_back({{c.x(), h.y0 - 0.05, 0.55}, {rw + 0.1, 0.1, 1.1}, 0, {rail}, rail, 1});
+    s.boxes.push_back({{c.x(), h.y1 + 0.05, 0.55}, {rw + 0.1, 0.1, 1.1}, 0, {rail}, rail, 1});
+    s.boxes.push_back({{h.x0 - 0.05, c.y(), 0.55}, {0.1, rl, 1.1}, 0, {rail}, rail, 1});
+    s.boxes.push_back({{h.x1 + 0.05, c.y(), 0.55}, {0.1, rl, 1.1}, 0, {rail}, rail, 1});
+  }
+
+  // Kiosks against the block at c, moved between days (present on about half of its faces).
+  void Kiosks(const Eigen::Vector3d& c, const Eigen::Vector3d (&faces)[4]) {
+    for (const auto& n : faces) {
+      if (u01(rng) > 0.5) continue;
+      const bool along_y = std::abs(n.x()) > 0;
+      const double half = along_y ? o.block_x / 2 : o.block_y / 2;
+      const double room = (along_y ? o.block_y : o.block_x) / 2 - 1.2;
+      const Eigen::Vector3d t = Eigen::Vector3d::UnitZ().cross(n);
+      BoxSpec kiosk;
+      kiosk.center = c + n * (half + 0.28) + t * (room * (2 * u01(rng) - 1));
+      kiosk.center.z() = 0.9;
+      kiosk.size = along_y ? Eigen::Vector3d(0.5, 1.4, 1.8) : Eigen::Vector3d(1.4, 0.5, 1.8);
+      kiosk.sides = {{Key("poster", poster_counter++)}};
+      kiosk.top = {"plain:2"};
+      kiosk.tile_m = 0;
+      kiosk.days = static_cast<uint32_t>(rng()) | 1u;  // always there on day 0
+      s.boxes.push_back(kiosk);
+    }
+  }
+
+  // Shop block (i, j) at c: its box, its faces' panels and kiosks; the twin
+  // (last of the bottom row) repeats the first block's box and panels.
+  void Block(int i, int j, const Eigen::Vector3d& c) {
+    const bool twin = (j == 0 && i == o.blocks_x - 1 && o.blocks_x >= 2);
+    BoxSpec b;
+    b.center = c;
+    b.size = {o.block_x, o.block_y, o.height};
+    b.sides = {{Key("noise", (i + 2 * j) % 5)}};
+    if (twin) b.sides = s.boxes.empty() ? b.sides : s.boxes.front().sides;
+    b.tile_m = 3.0;
+    s.boxes.push_back(b);
+    if (twin) {
+      for (auto p : twin_panels) {
+        p.center += c;
+        s.panels.push_back(p);
+      }
+      return;
+    }
+    std::vector<PanelSpec> panels;
+    const Eigen::Vector3d faces[4] = {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, -1, 0}};
+    for (const auto& n : faces) {
+      const double half = std::abs(n.x()) > 0 ? o.block_x / 2 : o.block_y / 2;
+      const double width = std::abs(n.x()) > 0 ? o.block_y : o.block_x;
+      DecorateFace(c + n * half, n, width, rng, &poster_counter, &panels);
+    }
+    for (const auto& p : panels) s.panels.push_back(p);
+    Kiosks(c, faces);
+    if (i == 0 && j == 0)
+      for (auto p : panels) {
+        p.center -= c;
+        twin_panels.push_back(p);
+      }
+  }
+
+  // Shop blocks; the first and last of the bottom row are identical (repetition),
+  // the middle one of the top row is a floor opening when there are >= 3 blocks.
+  void Blocks() {
+    const int hole_i = o.blocks_x >= 3 ? o.blocks_x / 2 : -1, hole_j = o.blocks_y - 1;
+    for (int j = 0; j < o.blocks_y; ++j)
+      for (int i = 0; i < o.blocks_x; ++i) {
+        const Eigen::Vector3d c(o.corridor + i * pitch_x + o.block_x / 2,
+                                o.corridor + j * pitch_y + o.block_y / 2, o.height / 2);
+        if (i == hole_i && j == hole_j && (o.blocks_y > 1 || o.blocks_x >= 3))
+          Opening(c);
+        else
+          Block(i, j, c);
+      }
+  }
+
+  // Perimeter wall decoration, pillars beside corridor intersections (off
+  // the walking lanes), a row of turnstiles across the first corridor segment
+  // of the bottom row.
+  void Fittings() {
+    const double cx = 0.5 * (s.x0 + s.x1), cy = 0.5 * (s.y0 + s.y1);
+    DecorateFace({s.x0, cy, 0}, {1, 0, 0}, s.y1 - s.y0, rng, &poster_counter, &s.panels);
+    DecorateFace({s.x1, cy, 0}, {-1, 0, 0}, s.y1 - s.y0, rng, &poster_counter, &s.panels);
+    DecorateFace({cx, s.y0, 0}, {0, 1, 0}, s.x1 - s.x0, rng, &poster_counter, &s.panels);
+    DecorateFace({cx, s.y1, 0}, {0, -1, 0}, s.x1 - s.x0, rng, &poster_counter, &s.panels);
+    for (size_t n = 0; n < s.walk.nodes.size(); n += 2) {
+      const Eigen::Vector2d p = s.walk.nodes[n] + Eigen::Vector2d(1, 1) * (o.corridor / 2 - 0.45);
+      if (p.x() > s.x1 - 0.5 || p.y() > s.y1 - 0.5) continue;
+      s.boxes.push_back({{p.x(), p.y(), o.height / 2}, {0.5, 0.5, o.height}, 0,
+                         {{Key("noise", 5 + static_cast<int>(n % 3))}}, {}, 1.0});
+    }
+    if (o.blocks_x >= 1) {
+      const Eigen::Vector2d a = s.walk.nodes[Node(0, 0)], b = s.walk.nodes[Node(1, 0)];
+      const double x = 0.5 * (a.x() + b.x());
+      for (double dy : {-1.8, -0.6, 0.6, 1.8})
+        s.boxes.push_back({{x, a.y() + dy, 0.5}, {0.9, 0.2, 1.0}, 0, {{"glossy:1", true}},
+                           {"plain:1"}, 1.0});
+    }
+  }
+};
+
 }  // namespace
 
 SceneSpec GenerateFloor(const FloorOptions& o, uint64_t seed) {
   std::string why;
   if (!o.Check(&why)) throw ParamError(why);
-  std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull + 17);
-  std::uniform_real_distribution<double> u01(0, 1);
-  SceneSpec s;
-  s.x0 = 0;
-  s.y0 = 0;
-  s.x1 = o.blocks_x * o.block_x + (o.blocks_x + 1) * o.corridor;
-  s.y1 = o.blocks_y * o.block_y + (o.blocks_y + 1) * o.corridor;
-  s.height = o.height;
-  s.floor = {Key("tiles", static_cast<int>(rng() % 3))};
-  s.wall = {Key("bricks", static_cast<int>(rng() % 3))};
-  s.ceiling = {Key("ceiling", 0)};
-  s.lower_floor = {Key("tiles", 3)};
-  const double pitch_x = o.block_x + o.corridor, pitch_y = o.block_y + o.corridor;
-
-  // Walk graph: corridor intersections.
-  for (int j = 0; j <= o.blocks_y; ++j)
-    for (int i = 0; i <= o.blocks_x; ++i)
-      s.walk.nodes.emplace_back(o.corridor / 2 + i * pitch_x, o.corridor / 2 + j * pitch_y);
-  const auto node = [&](int i, int j) { return j * (o.blocks_x + 1) + i; };
-  for (int j = 0; j <= o.blocks_y; ++j)
-    for (int i = 0; i <= o.blocks_x; ++i) {
-      if (i < o.blocks_x) s.walk.edges.emplace_back(node(i, j), node(i + 1, j));
-      if (j < o.blocks_y) s.walk.edges.emplace_back(node(i, j), node(i, j + 1));
-    }
-  s.start_node = s.walk.Nearest({0.5 * (s.x0 + s.x1), 0.5 * (s.y0 + s.y1)});
-  s.query_split_x = s.walk.nodes[s.start_node].x() + 0.5 * o.corridor;
-
-  // Shop blocks; the first and last of the bottom row are identical (repetition),
-  // the middle one of the top row is a floor opening when there are >= 3 blocks.
-  int poster_counter = 0;
-  std::vector<PanelSpec> twin_panels;  // panels of the first block, relative to its centre
-  const int hole_i = o.blocks_x >= 3 ? o.blocks_x / 2 : -1, hole_j = o.blocks_y - 1;
-  for (int j = 0; j < o.blocks_y; ++j)
-    for (int i = 0; i < o.blocks_x; ++i) {
-      const Eigen::Vector3d c(o.corridor + i * pitch_x + o.block_x / 2,
-                              o.corridor + j * pitch_y + o.block_y / 2, o.height / 2);
-      if (i == hole_i && j == hole_j && (o.blocks_y > 1 || o.blocks_x >= 3)) {
-        HoleSpec h{c.x() - o.block_x / 2 + 0.5, c.y() - o.block_y / 2 + 0.5,
-                   c.x() + o.block_x / 2 - 0.5, c.y() + o.block_y / 2 - 0.5};
-        s.holes.push_back(h);
-        // Railing around the opening.
-        const double rw = h.x1 - h.x0, rl = h.y1 - h.y0;
-        const Material rail{"glossy:0", true};
-        s.boxes.push_back({{c.x(), h.y0 - 0.05, 0.55}, {rw + 0.1, 0.1, 1.1}, 0, {rail}, rail, 1});
-        s.boxes.push_back({{c.x(), h.y1 + 0.05, 0.55}, {rw + 0.1, 0.1, 1.1}, 0, {rail}, rail, 1});
-        s.boxes.push_back({{h.x0 - 0.05, c.y(), 0.55}, {0.1, rl, 1.1}, 0, {rail}, rail, 1});
-        s.boxes.push_back({{h.x1 + 0.05, c.y(), 0.55}, {0.1, rl, 1.1}, 0, {rail}, rail, 1});
-        continue;
-      }
-      const bool twin = (j == 0 && i == o.blocks_x - 1 && o.blocks_x >= 2);
-      BoxSpec b;
-      b.center = c;
-      b.size = {o.block_x, o.block_y, o.height};
-      b.sides = {{Key("noise", (i + 2 * j) % 5)}};
-      if (twin) b.sides = s.boxes.empty() ? b.sides : s.boxes.front().sides;
-      b.tile_m = 3.0;
-      s.boxes.push_back(b);
-      if (twin) {
-        for (auto p : twin_panels) {
-          p.center += c;
-          s.panels.push_back(p);
-        }
-        continue;
-      }
-      std::vector<PanelSpec> panels;
-      const Eigen::Vector3d faces[4] = {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, -1, 0}};
-      for (const auto& n : faces) {
-        const double half = std::abs(n.x()) > 0 ? o.block_x / 2 : o.block_y / 2;
-        const double width = std::abs(n.x()) > 0 ? o.block_y : o.block_x;
-        DecorateFace(c + n * half, n, width, rng, &poster_counter, &panels);
-      }
-      for (const auto& p : panels) s.panels.push_back(p);
-      // Kiosks against the block, moved between days (present on about half of them).
-      for (const auto& n : faces) {
-        if (u01(rng) > 0.5) continue;
-        const bool along_y = std::abs(n.x()) > 0;
-        const double half = along_y ? o.block_x / 2 : o.block_y / 2;
-        const double room = (along_y ? o.block_y : o.block_x) / 2 - 1.2;
-        const Eigen::Vector3d t = Eigen::Vector3d::UnitZ().cross(n);
-        BoxSpec kiosk;
-        kiosk.center = c + n * (half + 0.28) + t * (room * (2 * u01(rng) - 1));
-        kiosk.center.z() = 0.9;
-        kiosk.size = along_y ? Eigen::Vector3d(0.5, 1.4, 1.8) : Eigen::Vector3d(1.4, 0.5, 1.8);
-        kiosk.sides = {{Key("poster", poster_counter++)}};
-        kiosk.top = {"plain:2"};
-        kiosk.tile_m = 0;
-        kiosk.days = static_cast<uint32_t>(rng()) | 1u;  // always there on day 0
-        s.boxes.push_back(kiosk);
-      }
-      if (i == 0 && j == 0)
-        for (auto p : panels) {
-          p.center -= c;
-          twin_panels.push_back(p);
-        }
-    }
-
-  // Perimeter wall decoration.
-  const double cx = 0.5 * (s.x0 + s.x1), cy = 0.5 * (s.y0 + s.y1);
-  DecorateFace({s.x0, cy, 0}, {1, 0, 0}, s.y1 - s.y0, rng, &poster_counter, &s.panels);
-  DecorateFace({s.x1, cy, 0}, {-1, 0, 0}, s.y1 - s.y0, rng, &poster_counter, &s.panels);
-  DecorateFace({cx, s.y0, 0}, {0, 1, 0}, s.x1 - s.x0, rng, &poster_counter, &s.panels);
-  DecorateFace({cx, s.y1, 0}, {0, -1, 0}, s.x1 - s.x0, rng, &poster_counter, &s.panels);
-
-  // Pillars beside corridor intersections (off the walking lanes).
-  for (size_t n = 0; n < s.walk.nodes.size(); n += 2) {
-    const Eigen::Vector2d p = s.walk.nodes[n] + Eigen::Vector2d(1, 1) * (o.corridor / 2 - 0.45);
-    if (p.x() > s.x1 - 0.5 || p.y() > s.y1 - 0.5) continue;
-    s.boxes.push_back({{p.x(), p.y(), o.height / 2}, {0.5, 0.5, o.height}, 0,
-                       {{Key("noise", 5 + static_cast<int>(n % 3))}}, {}, 1.0});
-  }
-
-  // A row of turnstiles across the first corridor segment of the bottom row.
-  if (o.blocks_x >= 1) {
-    const Eigen::Vector2d a = s.walk.nodes[node(0, 0)], b = s.walk.nodes[node(1, 0)];
-    const double x = 0.5 * (a.x() + b.x());
-    for (double dy : {-1.8, -0.6, 0.6, 1.8})
-      s.boxes.push_back({{x, a.y() + dy, 0.5}, {0.9, 0.2, 1.0}, 0, {{"glossy:1", true}},
-                         {"plain:1"}, 1.0});
-  }
-  return s;
+  FloorMaker m(o, seed);
+  m.Outline();
+  m.WalkGraph();
+  m.Blocks();
+  m.Fittings();
+  return std::move(m.s);
 }
 
 // ---- YAML floor plans --------------------------------------------------------
@@ -405,112 +441,124 @@ struct YamlReader {
   }
 };
 
-}  // namespace
-
-SceneSpec LoadSceneSpec(const std::filesystem::path& yaml_file) {
-  YamlReader r{yaml_file.string()};
-  YAML::Node root;
+YAML::Node LoadYaml(const YamlReader& r) {
   try {
-    root = YAML::LoadFile(yaml_file.string());
+    return YAML::LoadFile(r.file);
   } catch (const YAML::ParserException& e) {
     throw InputError(r.file, e.mark.line + 1, "", e.msg);
   } catch (const YAML::Exception& e) {
     throw InputError(r.file, 0, "", std::string("cannot read: ") + e.what());
   }
-  if (!root.IsMap()) throw InputError(r.file, 1, "", "a floor plan is a YAML map");
-  SceneSpec s;
+}
+
+// extent, height and the surfaces' materials.
+void ReadOutline(const YamlReader& r, const YAML::Node& root, SceneSpec* s) {
   if (!root["extent"]) r.Fail(root, "extent", "missing [x0, y0, x1, y1]");
   const YAML::Node ext = root["extent"];
   if (!ext.IsSequence() || ext.size() != 4) r.Fail(ext, "extent", "expected [x0, y0, x1, y1]");
-  s.x0 = r.Number(ext[0], "extent");
-  s.y0 = r.Number(ext[1], "extent");
-  s.x1 = r.Number(ext[2], "extent");
-  s.y1 = r.Number(ext[3], "extent");
-  if (s.x1 <= s.x0 || s.y1 <= s.y0) r.Fail(ext, "extent", "empty floor");
-  s.height = r.Get(root, "height", s.height, "");
-  if (s.height <= 0) r.Fail(root["height"], "height", "must be positive");
+  s->x0 = r.Number(ext[0], "extent");
+  s->y0 = r.Number(ext[1], "extent");
+  s->x1 = r.Number(ext[2], "extent");
+  s->y1 = r.Number(ext[3], "extent");
+  if (s->x1 <= s->x0 || s->y1 <= s->y0) r.Fail(ext, "extent", "empty floor");
+  s->height = r.Get(root, "height", s->height, "");
+  if (s->height <= 0) r.Fail(root["height"], "height", "must be positive");
   for (const char* k : {"floor", "ceiling", "wall", "lower_floor"}) {
     if (!root[k]) continue;
     Material m = r.Mat(root[k], k);
-    (std::string(k) == "floor" ? s.floor
-     : std::string(k) == "ceiling" ? s.ceiling
-     : std::string(k) == "wall"    ? s.wall
-                                   : s.lower_floor) = m;
+    (std::string(k) == "floor" ? s->floor
+     : std::string(k) == "ceiling" ? s->ceiling
+     : std::string(k) == "wall"    ? s->wall
+                                   : s->lower_floor) = m;
   }
-  const auto list = [&](const char* key) {
-    const YAML::Node n = root[key];
-    if (n && !n.IsSequence()) r.Fail(n, key, "expected a list");
-    return n;
-  };
-  if (const auto boxes = list("boxes")) {
-    for (size_t i = 0; i < boxes.size(); ++i) {
-      const YAML::Node b = boxes[i];
-      const std::string where = "boxes[" + std::to_string(i) + "]";
-      BoxSpec box;
-      if (!b["center"] || !b["size"]) r.Fail(b, where, "needs center and size");
-      box.center = r.Vec(b["center"], where + ".center", 3);
-      box.size = r.Vec(b["size"], where + ".size", 3);
-      if ((box.size.array() <= 0).any()) r.Fail(b["size"], where + ".size", "must be positive");
-      box.yaw_deg = r.Get(b, "yaw_deg", 0, where);
-      box.tile_m = r.Get(b, "tile_m", box.tile_m, where);
-      if (b["sides"]) {
-        if (b["sides"].IsSequence())
-          for (const auto& m : b["sides"]) box.sides.push_back(r.Mat(m, where + ".sides"));
-        else
-          box.sides.push_back(r.Mat(b["sides"], where + ".sides"));
-      }
-      if (b["top"]) box.top = r.Mat(b["top"], where + ".top");
-      box.days = r.Days(b, where);
-      s.boxes.push_back(box);
-    }
+}
+
+// root[key]: absent, or a list.
+YAML::Node ListOf(const YamlReader& r, const YAML::Node& root, const char* key) {
+  const YAML::Node n = root[key];
+  if (n && !n.IsSequence()) r.Fail(n, key, "expected a list");
+  return n;
+}
+
+BoxSpec ReadBox(const YamlReader& r, const YAML::Node& b, const std::string& where) {
+  BoxSpec box;
+  if (!b["center"] || !b["size"]) r.Fail(b, where, "needs center and size");
+  box.center = r.Vec(b["center"], where + ".center", 3);
+  box.size = r.Vec(b["size"], where + ".size", 3);
+  if ((box.size.array() <= 0).any()) r.Fail(b["size"], where + ".size", "must be positive");
+  box.yaw_deg = r.Get(b, "yaw_deg", 0, where);
+  box.tile_m = r.Get(b, "tile_m", box.tile_m, where);
+  if (b["sides"]) {
+    if (b["sides"].IsSequence())
+      for (const auto& m : b["sides"]) box.sides.push_back(r.Mat(m, where + ".sides"));
+    else
+      box.sides.push_back(r.Mat(b["sides"], where + ".sides"));
   }
-  if (const auto panels = list("panels")) {
-    for (size_t i = 0; i < panels.size(); ++i) {
-      const YAML::Node p = panels[i];
-      const std::string where = "panels[" + std::to_string(i) + "]";
-      PanelSpec panel;
-      if (!p["center"] || !p["material"]) r.Fail(p, where, "needs center and material");
-      panel.center = r.Vec(p["center"], where + ".center", 3);
-      panel.yaw_deg = r.Get(p, "yaw_deg", 0, where);
-      panel.width = r.Get(p, "width", 1, where);
-      panel.height = r.Get(p, "height", 1, where);
-      panel.tile_m = r.Get(p, "tile_m", 0, where);
-      panel.material = r.Mat(p["material"], where + ".material");
-      panel.days = r.Days(p, where);
-      s.panels.push_back(panel);
-    }
-  }
-  if (const auto holes = list("holes")) {
-    for (size_t i = 0; i < holes.size(); ++i) {
-      const std::string where = "holes[" + std::to_string(i) + "]";
-      if (!holes[i].IsSequence() || holes[i].size() != 4) r.Fail(holes[i], where, "expected [x0, y0, x1, y1]");
-      HoleSpec h{r.Number(holes[i][0], where), r.Number(holes[i][1], where),
-                 r.Number(holes[i][2], where), r.Number(holes[i][3], where)};
-      if (h.x1 <= h.x0 || h.y1 <= h.y0) r.Fail(holes[i], where, "empty hole");
-      s.holes.push_back(h);
-    }
-  }
+  if (b["top"]) box.top = r.Mat(b["top"], where + ".top");
+  box.days = r.Days(b, where);
+  return box;
+}
+
+PanelSpec ReadPanel(const YamlReader& r, const YAML::Node& p, const std::string& where) {
+  PanelSpec panel;
+  if (!p["center"] || !p["material"]) r.Fail(p, where, "needs center and material");
+  panel.center = r.Vec(p["center"], where + ".center", 3);
+  panel.yaw_deg = r.Get(p, "yaw_deg", 0, where);
+  panel.width = r.Get(p, "width", 1, where);
+  panel.height = r.Get(p, "height", 1, where);
+  panel.tile_m = r.Get(p, "tile_m", 0, where);
+  panel.material = r.Mat(p["material"], where + ".material");
+  panel.days = r.Days(p, where);
+  return panel;
+}
+
+HoleSpec ReadHole(const YamlReader& r, const YAML::Node& n, const std::string& where) {
+  if (!n.IsSequence() || n.size() != 4) r.Fail(n, where, "expected [x0, y0, x1, y1]");
+  HoleSpec h{r.Number(n[0], where), r.Number(n[1], where), r.Number(n[2], where), r.Number(n[3], where)};
+  if (h.x1 <= h.x0 || h.y1 <= h.y0) r.Fail(n, where, "empty hole");
+  return h;
+}
+
+// The walk graph, its start node and the query split.
+void ReadWalk(const YamlReader& r, const YAML::Node& root, SceneSpec* s) {
   const YAML::Node walk = root["walk"];
   if (!walk || !walk["nodes"] || !walk["edges"])
     r.Fail(walk ? walk : root, "walk", "missing walk: {nodes: [[x, y], ...], edges: [[i, j], ...]}");
   for (size_t i = 0; i < walk["nodes"].size(); ++i) {
     const Eigen::Vector3d v = r.Vec(walk["nodes"][i], "walk.nodes[" + std::to_string(i) + "]", 2);
-    s.walk.nodes.emplace_back(v.x(), v.y());
+    s->walk.nodes.emplace_back(v.x(), v.y());
   }
   for (size_t i = 0; i < walk["edges"].size(); ++i) {
     const std::string where = "walk.edges[" + std::to_string(i) + "]";
     const Eigen::Vector3d e = r.Vec(walk["edges"][i], where, 2);
     const int a = static_cast<int>(e.x()), b = static_cast<int>(e.y());
-    const int n = static_cast<int>(s.walk.nodes.size());
-    if (a < 0 || b < 0 || a >= n || b >= n || a == b)
-      r.Fail(walk["edges"][i], where, "node index out of range");
-    s.walk.edges.emplace_back(a, b);
+    const int n = static_cast<int>(s->walk.nodes.size());
+    if (a < 0 || b < 0 || a >= n || b >= n || a == b) r.Fail(walk["edges"][i], where, "node index out of range");
+    s->walk.edges.emplace_back(a, b);
   }
-  if (s.walk.nodes.size() < 2 || s.walk.edges.empty()) r.Fail(walk, "walk", "needs >= 2 nodes and an edge");
-  s.start_node = static_cast<int>(r.Get(root, "start_node", 0, ""));
-  if (s.start_node < 0 || s.start_node >= static_cast<int>(s.walk.nodes.size()))
+  if (s->walk.nodes.size() < 2 || s->walk.edges.empty()) r.Fail(walk, "walk", "needs >= 2 nodes and an edge");
+  s->start_node = static_cast<int>(r.Get(root, "start_node", 0, ""));
+  if (s->start_node < 0 || s->start_node >= static_cast<int>(s->walk.nodes.size()))
     r.Fail(root["start_node"], "start_node", "node index out of range");
-  s.query_split_x = r.Get(root, "query_split_x", s.walk.nodes[s.start_node].x(), "");
+  s->query_split_x = r.Get(root, "query_split_x", s->walk.nodes[s->start_node].x(), "");
+}
+
+}  // namespace
+
+SceneSpec LoadSceneSpec(const std::filesystem::path& yaml_file) {
+  YamlReader r{yaml_file.string()};
+  const YAML::Node root = LoadYaml(r);
+  if (!root.IsMap()) throw InputError(r.file, 1, "", "a floor plan is a YAML map");
+  SceneSpec s;
+  ReadOutline(r, root, &s);
+  if (const auto boxes = ListOf(r, root, "boxes"))
+    for (size_t i = 0; i < boxes.size(); ++i) s.boxes.push_back(ReadBox(r, boxes[i], "boxes[" + std::to_string(i) + "]"));
+  if (const auto panels = ListOf(r, root, "panels"))
+    for (size_t i = 0; i < panels.size(); ++i)
+      s.panels.push_back(ReadPanel(r, panels[i], "panels[" + std::to_string(i) + "]"));
+  if (const auto holes = ListOf(r, root, "holes"))
+    for (size_t i = 0; i < holes.size(); ++i) s.holes.push_back(ReadHole(r, holes[i], "holes[" + std::to_string(i) + "]"));
+  ReadWalk(r, root, &s);
   return s;
 }
 

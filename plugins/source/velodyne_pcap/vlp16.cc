@@ -116,29 +116,99 @@ Returns ParseReturns(const std::string& text) {
   throw ParamError("returns: '" + text + "' is not one of auto, strongest, last, dual");
 }
 
-bool DecodePacket(const std::string& payload, int64_t packet_time_ns, const Calibration& calibration,
-                  const DecodeOptions& options, std::vector<Point>* points, DecodeStats* stats) {
+namespace {
+
+// The packet's return mode, 0 when it is not a valid VLP-16 data packet.
+uint8_t ValidMode(const std::string& payload) {
   const auto* p = reinterpret_cast<const unsigned char*>(payload.data());
   bool valid = payload.size() == kPacketSize;
   for (int b = 0; valid && b < kBlocks; ++b)
     valid = p[b * 100] == 0xff && p[b * 100 + 1] == 0xee && Le16(p + b * 100 + 2) < 36000;
   const uint8_t mode = valid ? p[1204] : 0;
   valid = valid && (mode == kReturnStrongest || mode == kReturnLast || mode == kReturnDual);
-  if (!valid) {
-    ++stats->bad_packets;
-    return false;
-  }
-  ++stats->packets;
-  stats->return_mode = mode;
-  stats->product_id = p[1205];
+  return valid ? mode : 0;
+}
+
+// The returns wanted of a capture in `mode` (auto: all it holds); a single
+// return capture holds only its own.
+Returns WantedReturns(Returns want, uint8_t mode) {
   const bool dual = mode == kReturnDual;
-  Returns want = options.returns;
   if (want == Returns::kAuto) want = dual ? Returns::kDual : Returns::kStrongest;
   if (!dual && ((want == Returns::kStrongest && mode != kReturnStrongest) ||
                 (want == Returns::kLast && mode != kReturnLast) || want == Returns::kDual))
     throw ParamError(std::string("returns: the capture holds ") + (mode == kReturnLast ? "last" : "strongest") +
                      " returns only (the sensor's return mode); set returns to auto or " +
                      (mode == kReturnLast ? "last" : "strongest"));
+  return want;
+}
+
+struct Return {
+  uint16_t distance;
+  uint8_t reflectivity;
+};
+
+// The returns of one firing kept: of a dual-return packet, block b holds
+// the last return and b + 1 the strongest (or second strongest when the
+// strongest is the last).
+int SelectReturns(const unsigned char* p, int b, int s, int laser, bool dual, Returns want, Return returns[2]) {
+  auto read = [&](int block) {
+    const unsigned char* c = p + block * 100 + 4 + (s * kLasers + laser) * 3;
+    return Return{Le16(c), c[2]};
+  };
+  int count = 0;
+  const Return first = read(b);
+  if (!dual) {
+    returns[count++] = first;
+  } else {
+    const Return other = read(b + 1);
+    if (want == Returns::kLast) {
+      returns[count++] = first;
+    } else if (want == Returns::kStrongest) {
+      returns[count++] = first.reflectivity >= other.reflectivity ? first : other;
+    } else {
+      returns[count++] = first;
+      if (other.distance != first.distance || other.reflectivity != first.reflectivity) returns[count++] = other;
+    }
+  }
+  return count;
+}
+
+// A return of laser l at azimuth point_az as a point (none when empty or out of range).
+void AddPoint(const Return& r, const LaserCalibration& l, double distance_resolution, double point_az,
+              int64_t time_ns, const DecodeOptions& options, std::vector<Point>* points, DecodeStats* stats) {
+  if (r.distance == 0) {
+    ++stats->no_return;
+    return;
+  }
+  const double distance = r.distance * distance_resolution + l.dist_correction;
+  if (distance < options.min_range || distance > options.max_range) {
+    ++stats->out_of_range;
+    return;
+  }
+  Point pt;
+  pt.xyz = ToPoint(l, distance, point_az);
+  pt.intensity = r.reflectivity;
+  pt.ring = static_cast<uint16_t>(l.ring);
+  pt.time_ns = time_ns;
+  pt.azimuth_deg = point_az;
+  points->push_back(pt);
+}
+
+}  // namespace
+
+bool DecodePacket(const std::string& payload, int64_t packet_time_ns, const Calibration& calibration,
+                  const DecodeOptions& options, std::vector<Point>* points, DecodeStats* stats) {
+  const uint8_t mode = ValidMode(payload);
+  if (mode == 0) {
+    ++stats->bad_packets;
+    return false;
+  }
+  const auto* p = reinterpret_cast<const unsigned char*>(payload.data());
+  ++stats->packets;
+  stats->return_mode = mode;
+  stats->product_id = p[1205];
+  const bool dual = mode == kReturnDual;
+  const Returns want = WantedReturns(options.returns, mode);
   const int step = dual ? 2 : 1;  // blocks per firing pair
   auto azimuth = [&](int b) { return Le16(p + b * 100 + 2) / 100.0; };
   for (int b = 0; b < kBlocks; b += step) {
@@ -154,49 +224,11 @@ bool DecodePacket(const std::string& payload, int64_t packet_time_ns, const Cali
         const int64_t offset_ns = s * kSequencePeriodNs + laser * kLaserSpacingNs;
         const double point_az = std::fmod(az + gap * static_cast<double>(offset_ns) / kBlockPeriodNs, 360.0);
         ++stats->firings;
-        struct Return {
-          uint16_t distance;
-          uint8_t reflectivity;
-        };
-        auto read = [&](int block) {
-          const unsigned char* c = p + block * 100 + 4 + (s * kLasers + laser) * 3;
-          return Return{Le16(c), c[2]};
-        };
         Return returns[2];
-        int count = 0;
-        const Return first = read(b);
-        if (!dual) {
-          returns[count++] = first;
-        } else {
-          const Return other = read(b + 1);  // strongest, or second strongest when the strongest is the last
-          if (want == Returns::kLast) {
-            returns[count++] = first;
-          } else if (want == Returns::kStrongest) {
-            returns[count++] = first.reflectivity >= other.reflectivity ? first : other;
-          } else {
-            returns[count++] = first;
-            if (other.distance != first.distance || other.reflectivity != first.reflectivity) returns[count++] = other;
-          }
-        }
-        for (int r = 0; r < count; ++r) {
-          if (returns[r].distance == 0) {
-            ++stats->no_return;
-            continue;
-          }
-          const LaserCalibration& l = calibration.lasers[laser];
-          const double distance = returns[r].distance * calibration.distance_resolution + l.dist_correction;
-          if (distance < options.min_range || distance > options.max_range) {
-            ++stats->out_of_range;
-            continue;
-          }
-          Point pt;
-          pt.xyz = ToPoint(l, distance, point_az);
-          pt.intensity = returns[r].reflectivity;
-          pt.ring = static_cast<uint16_t>(l.ring);
-          pt.time_ns = packet_time_ns + block_ns + offset_ns;
-          pt.azimuth_deg = point_az;
-          points->push_back(pt);
-        }
+        const int count = SelectReturns(p, b, s, laser, dual, want, returns);
+        for (int r = 0; r < count; ++r)
+          AddPoint(returns[r], calibration.lasers[laser], calibration.distance_resolution, point_az,
+                   packet_time_ns + block_ns + offset_ns, options, points, stats);
       }
   }
   return true;

@@ -178,117 +178,145 @@ bool IsMatchesArchive(const std::string& rel, const std::vector<std::string>& ma
   return false;
 }
 
-}  // namespace
+// One copy: the source's feature folders (1.1 per type or 1.0 single) and
+// match types, and the report.
+struct Copier {
+  Copier(const fs::path& src, const fs::path& dst, const CopyOptions& options)
+      : k(src), src(src), dst(dst), options(options), data_root(src / layout::kRecordsData) {}
 
-CopyReport CopyKapture(const fs::path& src, const fs::path& dst, const CopyOptions& options) {
-  std::string why;
-  if (!options.Check(&why)) throw ParamError("copy options: " + why);
-  Kapture k(src);
-  CheckDestination(src, dst, options.overwrite);
+  Kapture k;
+  const fs::path& src;
+  const fs::path& dst;
+  const CopyOptions& options;
+  const fs::path data_root;
   CopyReport report;
-  const fs::path data_root = src / layout::kRecordsData;
-
-  // Feature folders (1.1 per type or 1.0 single) by their path under src.
   std::vector<FeatureSet> sets;
-  for (FeatureKind kind : kAllKinds)
-    for (FeatureSet& s : k.FeatureSets(kind)) sets.push_back(std::move(s));
-  const std::vector<std::string> match_types = k.MatchesTypes();
-  k.observations();  // validates before anything is written
-  k.points3d();
+  std::vector<std::string> match_types;
 
-  int64_t missing = 0;
-  // Walked, not listed: a dataset of 100k images must not be held in memory.
-  for (auto it = fs::recursive_directory_iterator(src); it != fs::recursive_directory_iterator();
-       ++it) {
-    std::error_code type_ec;
-    if (!it->is_regular_file(type_ec)) continue;
-    const fs::path& file = it->path();
+  void ReadStructure() {
+    for (FeatureKind kind : kAllKinds)
+      for (FeatureSet& s : k.FeatureSets(kind)) sets.push_back(std::move(s));
+    match_types = k.MatchesTypes();
+    k.observations();  // validates before anything is written
+    k.points3d();
+  }
+
+  // The kapture's text files, rewritten from what was read: false for other files.
+  bool CopyTextFile(const fs::path& file, const std::string& rel, const fs::path& out) {
+    if (rel == layout::kSensors) {
+      WriteSensors(out, k.sensors());
+    } else if (rel == layout::kRigs) {
+      WriteRigs(out, k.rigs());
+    } else if (rel == layout::kTrajectories) {
+      WriteTrajectories(out, k.trajectories());
+    } else if (rel.rfind("sensors/records_", 0) == 0 && EndsWith(rel, ".txt") &&
+               rel.find('/', 8) == std::string::npos) {
+      const std::string type = rel.substr(16, rel.size() - 20);
+      report.records += CopyRecordsFile(file, out, type, rel, data_root);
+    } else if (rel == layout::kPoints3d) {
+      WritePoints3d(out, k.points3d());
+    } else if (rel == layout::kObservations) {
+      WriteObservations(out, k.observations());
+    } else {
+      return false;
+    }
+    ++report.text_files;
+    return true;
+  }
+
+  // The deepest feature folder holding rel (null: none).
+  const FeatureSet* OwnerOf(const std::string& rel) const {
+    const FeatureSet* owner = nullptr;
+    for (const FeatureSet& s : sets) {
+      const std::string dir = Rel(s.dir, src) + "/";
+      if (rel.rfind(dir, 0) == 0 && (!owner || Rel(s.dir, src).size() > Rel(owner->dir, src).size())) owner = &s;
+    }
+    return owner;
+  }
+
+  // Feature and match files and archives, checked and rewritten; anything else verbatim.
+  void CopyFeatureOrOther(const fs::path& file, const std::string& rel, const fs::path& out) {
+    const FeatureSet* owner = OwnerOf(rel);
+    const fs::path parent = file.parent_path();
+    const std::string ext = owner ? FeatureKindExtension(owner->kind) : "";
+    if (owner && parent == owner->dir && file.filename() == InfoFileName(owner->kind)) {
+      WriteFeatureInfo(out, owner->info);
+      ++report.text_files;
+    } else if (owner && EndsWith(rel, ext)) {
+      RewriteFeatureFile(file, out, owner->info.dtype, owner->info.dsize, rel);
+      ++report.binary_files;
+    } else if (owner && parent == owner->dir && owner->archive &&
+               file.filename() == layout::FeatureTarName(owner->kind)) {
+      report.binary_files +=
+          CopyArchive(file, out, ext, owner->info.dtype, owner->info.dsize, rel, options.unpack_archives);
+    } else if (rel.rfind(std::string(layout::kMatches) + "/", 0) == 0 && EndsWith(rel, ".matches")) {
+      RewriteFeatureFile(file, out, DType::kFloat64, 3, rel);
+      ++report.binary_files;
+    } else if (IsMatchesArchive(rel, match_types)) {
+      report.binary_files += CopyArchive(file, out, ".matches", DType::kFloat64, 3, rel, options.unpack_archives);
+    } else {
+      CopyVerbatim(file, out);
+      ++report.other_files;
+      report.notes.push_back("copied verbatim (not a kapture file): " + rel);
+    }
+  }
+
+  void CopyFile(const fs::path& file) {
     const std::string rel = Rel(file, src);
     // A link may not lead out of the dataset, except under records_data,
     // where links are the owner's choice (kapture's link imports): the
     // copy holds the files they name.
     std::error_code ec;
-    if (rel.rfind(std::string(layout::kRecordsData) + "/", 0) != 0 && fs::is_symlink(file, ec))
-      SafeJoin(src, rel, rel);
+    const bool in_records_data = rel.rfind(std::string(layout::kRecordsData) + "/", 0) == 0;
+    if (!in_records_data && fs::is_symlink(file, ec)) SafeJoin(src, rel, rel);
     const fs::path out = dst / rel;
-    const fs::path parent = file.parent_path();
-    if (rel == layout::kSensors) {
-      WriteSensors(out, k.sensors());
-      ++report.text_files;
-    } else if (rel == layout::kRigs) {
-      WriteRigs(out, k.rigs());
-      ++report.text_files;
-    } else if (rel == layout::kTrajectories) {
-      WriteTrajectories(out, k.trajectories());
-      ++report.text_files;
-    } else if (rel.rfind("sensors/records_", 0) == 0 && EndsWith(rel, ".txt") &&
-               rel.find('/', 8) == std::string::npos) {
-      const std::string type = rel.substr(16, rel.size() - 20);
-      report.records += CopyRecordsFile(file, out, type, rel, data_root);
-      ++report.text_files;
-    } else if (rel.rfind(std::string(layout::kRecordsData) + "/", 0) == 0) {
+    if (CopyTextFile(file, rel, out)) return;
+    if (in_records_data) {
       if (options.copy_records_data) {
         CopyVerbatim(file, out);
         ++report.data_files;
       }
-    } else if (rel == layout::kPoints3d) {
-      WritePoints3d(out, k.points3d());
-      ++report.text_files;
-    } else if (rel == layout::kObservations) {
-      WriteObservations(out, k.observations());
-      ++report.text_files;
-    } else {
-      // Feature files: the deepest feature folder holding this file.
-      const FeatureSet* owner = nullptr;
-      for (const FeatureSet& s : sets) {
-        const std::string dir = Rel(s.dir, src) + "/";
-        if (rel.rfind(dir, 0) == 0 &&
-            (!owner || Rel(s.dir, src).size() > Rel(owner->dir, src).size()))
-          owner = &s;
-      }
-      const std::string ext = owner ? FeatureKindExtension(owner->kind) : "";
-      if (owner && parent == owner->dir && file.filename() == InfoFileName(owner->kind)) {
-        WriteFeatureInfo(out, owner->info);
-        ++report.text_files;
-      } else if (owner && EndsWith(rel, ext)) {
-        RewriteFeatureFile(file, out, owner->info.dtype, owner->info.dsize, rel);
-        ++report.binary_files;
-      } else if (owner && parent == owner->dir && owner->archive &&
-                 file.filename() == layout::FeatureTarName(owner->kind)) {
-        report.binary_files += CopyArchive(file, out, ext, owner->info.dtype, owner->info.dsize,
-                                           rel, options.unpack_archives);
-      } else if (rel.rfind(std::string(layout::kMatches) + "/", 0) == 0 &&
-                 EndsWith(rel, ".matches")) {
-        RewriteFeatureFile(file, out, DType::kFloat64, 3, rel);
-        ++report.binary_files;
-      } else if (IsMatchesArchive(rel, match_types)) {
-        report.binary_files +=
-            CopyArchive(file, out, ".matches", DType::kFloat64, 3, rel, options.unpack_archives);
-      } else {
-        CopyVerbatim(file, out);
-        ++report.other_files;
-        report.notes.push_back("copied verbatim (not a kapture file): " + rel);
-      }
+      return;
     }
+    CopyFeatureOrOther(file, rel, out);
   }
 
   // Records naming files absent from the source: listed, not fatal.
-  for (const std::string& type : k.RecordTypes()) {
-    if (!IsDataRecordType(type)) continue;
-    const std::string display = layout::RecordsFile(type);
-    auto reader = k.StreamRecords<DataRecord>(type);
-    DataRecord r;
-    while (reader.Next(&r)) {
-      if (IsFile(data_root / r.path)) continue;
-      if (report.missing_data_files.size() < kListCap)
-        report.missing_data_files.push_back(std::string(layout::kRecordsData) + "/" + r.path);
-      ++missing;
+  void ListMissingDataFiles() {
+    int64_t missing = 0;
+    for (const std::string& type : k.RecordTypes()) {
+      if (!IsDataRecordType(type)) continue;
+      auto reader = k.StreamRecords<DataRecord>(type);
+      DataRecord r;
+      while (reader.Next(&r)) {
+        if (IsFile(data_root / r.path)) continue;
+        if (report.missing_data_files.size() < kListCap)
+          report.missing_data_files.push_back(std::string(layout::kRecordsData) + "/" + r.path);
+        ++missing;
+      }
     }
+    if (missing > static_cast<int64_t>(report.missing_data_files.size()))
+      report.notes.push_back(std::to_string(missing) + " record files are missing in the source (" +
+                             std::to_string(report.missing_data_files.size()) + " listed)");
   }
-  if (missing > static_cast<int64_t>(report.missing_data_files.size()))
-    report.notes.push_back(std::to_string(missing) + " record files are missing in the source (" +
-                           std::to_string(report.missing_data_files.size()) + " listed)");
-  return report;
+};
+
+}  // namespace
+
+CopyReport CopyKapture(const fs::path& src, const fs::path& dst, const CopyOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) throw ParamError("copy options: " + why);
+  Copier c(src, dst, options);
+  CheckDestination(src, dst, options.overwrite);
+  c.ReadStructure();
+  // Walked, not listed: a dataset of 100k images must not be held in memory.
+  for (auto it = fs::recursive_directory_iterator(src); it != fs::recursive_directory_iterator(); ++it) {
+    std::error_code type_ec;
+    if (!it->is_regular_file(type_ec)) continue;
+    c.CopyFile(it->path());
+  }
+  c.ListMissingDataFiles();
+  return std::move(c.report);
 }
 
 int64_t CopyFeatureFolder(FeatureKind kind, const fs::path& src, const fs::path& dst,

@@ -38,130 +38,154 @@ class ProblemList {
   std::map<std::string, int64_t> counts_;
 };
 
+// One inspection: the summary and its problems, part by part of the kapture.
+struct Inspector {
+  explicit Inspector(const fs::path& root) : k(root), problems(&s.problems) { s.root = root; }
+
+  Kapture k;
+  KaptureSummary s;
+  ProblemList problems;
+  std::vector<FeatureSet> image_features;  // parallel to s.features
+
+  void SensorsAndRigs() {
+    const Sensors& sensors = k.sensors();
+    for (const Sensor& sensor : sensors.list()) ++s.sensors_by_type[sensor.type];
+    const Rigs& rigs = k.rigs();
+    s.rigs = static_cast<int64_t>(rigs.size());
+    s.rig_sensor_entries = static_cast<int64_t>(rigs.NumSensorEntries());
+    for (const Rig& rig : rigs.list())
+      for (const RigSensor& rs : rig.sensors)
+        if (!sensors.Contains(rs.sensor_id))
+          problems.Add("unknown rig sensors", std::string(layout::kRigs) + ": rig '" + rig.id + "' lists sensor '" +
+                                                  rs.sensor_id + "' absent from sensors.txt");
+  }
+
+  void TrajectoryPoses() {
+    const kapture::Trajectories& traj = k.trajectories();
+    s.trajectory_poses = static_cast<int64_t>(traj.size());
+    std::set<std::string> traj_devices;
+    for (const auto& [key, pose] : traj.poses) {
+      if (traj_devices.insert(key.second).second && !k.sensors().Contains(key.second) && !k.rigs().Find(key.second))
+        problems.Add("unknown trajectory devices", std::string(layout::kTrajectories) + ": device '" + key.second +
+                                                       "' is neither a sensor nor a rig");
+    }
+    s.trajectory_devices = static_cast<int64_t>(traj_devices.size());
+    if (!traj.empty()) {
+      s.trajectory_first = traj.poses.begin()->first.first;
+      s.trajectory_last = traj.poses.rbegin()->first.first;
+    }
+  }
+
+  void FeatureFiles() {
+    for (FeatureKind kind : kAllKinds)
+      for (const FeatureSet& set : k.FeatureSets(kind)) {
+        FeatureSummary f;
+        f.kind = kind;
+        f.type = set.type;
+        f.info = set.info;
+        f.files = static_cast<int64_t>(k.FeatureImages(kind, set.type).size());
+        s.features.push_back(f);
+        image_features.push_back(set);
+      }
+  }
+
+  // One record of a records file counted (devices: those seen in it so far).
+  void Account(RecordsSummary& rs, std::set<std::string>& devices, const std::string& file, Timestamp t,
+               const std::string& device) {
+    if (rs.count == 0 || t < rs.first) rs.first = t;
+    if (rs.count == 0 || t > rs.last) rs.last = t;
+    ++rs.count;
+    if (devices.insert(device).second && !k.sensors().Contains(device)) {
+      problems.Add("unknown record devices", file + ": device '" + device + "' is not in sensors.txt");
+    }
+    if (!k.sensors().Contains(device)) ++rs.unknown_devices;
+  }
+
+  // An image record: every feature set should have a file for it.
+  void CheckImageFeatures(const DataRecord& r) {
+    for (size_t i = 0; i < image_features.size(); ++i) {
+      const FeatureSet& set = image_features[i];
+      if (!SetHasImage(set, r.path)) {
+        ++s.features[i].camera_records_without_file;
+        problems.Add("missing feature files", std::string(FeatureKindFolder(set.kind)) + "/" + set.type + ": no " +
+                                                  FeatureKindExtension(set.kind) + " file for image " + r.path);
+      }
+    }
+  }
+
+  // Records with a data file: each file must exist.
+  void DataRecords(const std::string& type, RecordsSummary& rs, std::set<std::string>& devices) {
+    const fs::path data_root = s.root / layout::kRecordsData;
+    const std::string file = layout::RecordsFile(type);
+    auto reader = k.StreamRecords<DataRecord>(type);
+    DataRecord r;
+    while (reader.Next(&r)) {
+      Account(rs, devices, file, r.timestamp, r.device_id);
+      if (!IsFile(data_root / r.path)) {
+        ++rs.missing_files;
+        problems.Add("missing record files",
+                     file + ": missing file " + std::string(layout::kRecordsData) + "/" + r.path);
+      }
+      if (RecordKindOf(type) == RecordKind::kCamera) CheckImageFeatures(r);
+    }
+  }
+
+  // Other records: typed parsing validates every line; only the head is summarised.
+  void TypedRecords(const std::string& type, RecordsSummary& rs, std::set<std::string>& devices) {
+    const std::string file = layout::RecordsFile(type);
+    auto run = [&](auto reader, auto record) {
+      while (reader.Next(&record)) Account(rs, devices, file, record.timestamp, record.device_id);
+    };
+    switch (RecordKindOf(type)) {
+      case RecordKind::kGnss: run(k.StreamRecords<GnssRecord>(type), GnssRecord()); break;
+      case RecordKind::kWifi: run(k.StreamRecords<WifiRecord>(type), WifiRecord()); break;
+      case RecordKind::kBluetooth: run(k.StreamRecords<BluetoothRecord>(type), BluetoothRecord()); break;
+      case RecordKind::kAccelerometer:
+      case RecordKind::kGyroscope:
+      case RecordKind::kMagnetic: run(k.StreamRecords<Vector3Record>(type), Vector3Record()); break;
+      default: run(k.StreamRecords<GenericRecord>(type), GenericRecord()); break;
+    }
+  }
+
+  void Records() {
+    for (const std::string& type : k.RecordTypes()) {
+      RecordsSummary rs;
+      rs.sensor_type = type;
+      std::set<std::string> devices;
+      if (IsDataRecordType(type))
+        DataRecords(type, rs, devices);
+      else
+        TypedRecords(type, rs, devices);
+      rs.devices = static_cast<int64_t>(devices.size());
+      s.records.push_back(rs);
+    }
+  }
+
+  void ReconstructionFiles() {
+    for (const std::string& type : k.MatchesTypes())
+      s.match_pairs[type] = static_cast<int64_t>(k.MatchPairs(type).size());
+    s.points3d = static_cast<int64_t>(k.points3d().size());
+    for (const ObservationsEntry& e : k.observations()) {
+      ++s.observation_entries;
+      s.observations += static_cast<int64_t>(e.features.size());
+      if (e.point3d_id < 0 || e.point3d_id >= s.points3d)
+        problems.Add("observations of unknown points", std::string(layout::kObservations) + ": point3d_id " +
+                                                           std::to_string(e.point3d_id) + " is not in points3d.txt");
+    }
+  }
+};
+
 }  // namespace
 
 KaptureSummary InspectKapture(const fs::path& root) {
-  Kapture k(root);
-  KaptureSummary s;
-  s.root = root;
-  ProblemList problems(&s.problems);
-
-  const Sensors& sensors = k.sensors();
-  for (const Sensor& sensor : sensors.list()) ++s.sensors_by_type[sensor.type];
-  const Rigs& rigs = k.rigs();
-  s.rigs = static_cast<int64_t>(rigs.size());
-  s.rig_sensor_entries = static_cast<int64_t>(rigs.NumSensorEntries());
-  for (const Rig& rig : rigs.list())
-    for (const RigSensor& rs : rig.sensors)
-      if (!sensors.Contains(rs.sensor_id))
-        problems.Add("unknown rig sensors", std::string(layout::kRigs) + ": rig '" + rig.id +
-                                                "' lists sensor '" + rs.sensor_id +
-                                                "' absent from sensors.txt");
-
-  const Trajectories& traj = k.trajectories();
-  s.trajectory_poses = static_cast<int64_t>(traj.size());
-  std::set<std::string> traj_devices;
-  for (const auto& [key, pose] : traj.poses) {
-    if (traj_devices.insert(key.second).second && !sensors.Contains(key.second) &&
-        !rigs.Find(key.second))
-      problems.Add("unknown trajectory devices",
-                   std::string(layout::kTrajectories) + ": device '" + key.second +
-                       "' is neither a sensor nor a rig");
-  }
-  s.trajectory_devices = static_cast<int64_t>(traj_devices.size());
-  if (!traj.empty()) {
-    s.trajectory_first = traj.poses.begin()->first.first;
-    s.trajectory_last = traj.poses.rbegin()->first.first;
-  }
-
-  std::vector<FeatureSet> image_features;
-  for (FeatureKind kind : kAllKinds)
-    for (const FeatureSet& set : k.FeatureSets(kind)) {
-      FeatureSummary f;
-      f.kind = kind;
-      f.type = set.type;
-      f.info = set.info;
-      f.files = static_cast<int64_t>(k.FeatureImages(kind, set.type).size());
-      s.features.push_back(f);
-      image_features.push_back(set);
-    }
-
-  const fs::path data_root = root / layout::kRecordsData;
-  for (const std::string& type : k.RecordTypes()) {
-    RecordsSummary rs;
-    rs.sensor_type = type;
-    std::set<std::string> devices;
-    const std::string file = layout::RecordsFile(type);
-    auto account = [&](Timestamp t, const std::string& device, int64_t line_hint) {
-      (void)line_hint;
-      if (rs.count == 0 || t < rs.first) rs.first = t;
-      if (rs.count == 0 || t > rs.last) rs.last = t;
-      ++rs.count;
-      if (devices.insert(device).second && !sensors.Contains(device)) {
-        problems.Add("unknown record devices",
-                     file + ": device '" + device + "' is not in sensors.txt");
-      }
-      if (!sensors.Contains(device)) ++rs.unknown_devices;
-    };
-    const RecordKind kind = RecordKindOf(type);
-    if (IsDataRecordType(type)) {
-      auto reader = k.StreamRecords<DataRecord>(type);
-      DataRecord r;
-      while (reader.Next(&r)) {
-        account(r.timestamp, r.device_id, 0);
-        if (!IsFile(data_root / r.path)) {
-          ++rs.missing_files;
-          problems.Add("missing record files",
-                       file + ": missing file " + std::string(layout::kRecordsData) + "/" + r.path);
-        }
-        if (kind == RecordKind::kCamera) {
-          for (size_t i = 0; i < image_features.size(); ++i) {
-            const FeatureSet& set = image_features[i];
-            if (!SetHasImage(set, r.path)) {
-              ++s.features[i].camera_records_without_file;
-              problems.Add("missing feature files",
-                           std::string(FeatureKindFolder(set.kind)) + "/" + set.type + ": no " +
-                               FeatureKindExtension(set.kind) + " file for image " + r.path);
-            }
-          }
-        }
-      }
-    } else {
-      // Typed parsing validates every line; only the head is summarised.
-      auto run = [&](auto reader, auto record) {
-        while (reader.Next(&record)) account(record.timestamp, record.device_id, 0);
-      };
-      switch (kind) {
-        case RecordKind::kGnss: run(k.StreamRecords<GnssRecord>(type), GnssRecord()); break;
-        case RecordKind::kWifi: run(k.StreamRecords<WifiRecord>(type), WifiRecord()); break;
-        case RecordKind::kBluetooth:
-          run(k.StreamRecords<BluetoothRecord>(type), BluetoothRecord());
-          break;
-        case RecordKind::kAccelerometer:
-        case RecordKind::kGyroscope:
-        case RecordKind::kMagnetic:
-          run(k.StreamRecords<Vector3Record>(type), Vector3Record());
-          break;
-        default: run(k.StreamRecords<GenericRecord>(type), GenericRecord()); break;
-      }
-    }
-    rs.devices = static_cast<int64_t>(devices.size());
-    s.records.push_back(rs);
-  }
-
-  for (const std::string& type : k.MatchesTypes())
-    s.match_pairs[type] = static_cast<int64_t>(k.MatchPairs(type).size());
-  s.points3d = static_cast<int64_t>(k.points3d().size());
-  for (const ObservationsEntry& e : k.observations()) {
-    ++s.observation_entries;
-    s.observations += static_cast<int64_t>(e.features.size());
-    if (e.point3d_id < 0 || e.point3d_id >= s.points3d)
-      problems.Add("observations of unknown points",
-                   std::string(layout::kObservations) + ": point3d_id " +
-                       std::to_string(e.point3d_id) + " is not in points3d.txt");
-  }
-  problems.Close();
-  return s;
+  Inspector in(root);
+  in.SensorsAndRigs();
+  in.TrajectoryPoses();
+  in.FeatureFiles();
+  in.Records();
+  in.ReconstructionFiles();
+  in.problems.Close();
+  return std::move(in.s);
 }
 
 std::string FormatSummary(const KaptureSummary& s) {

@@ -311,6 +311,72 @@ void Registry::LoadFolder(const fs::path& folder) {
   for (const auto& f : files) LoadFile(f);
 }
 
+namespace {
+
+// Opens a plugin library and finds its entry point: null (and why) when it
+// is no loadable locforge plugin. RTLD_NOW: an unresolved symbol is reported
+// now, not as a crash mid-run. RTLD_LOCAL: plugins cannot see (or clash
+// with) each other's symbols. Once opened, the library's static
+// constructors have run: its handle is kept (never dlclose'd) so no code of
+// it can be unmapped under our feet.
+void* EntrySymbol(const fs::path& path, void** handle, std::string* why) {
+  if (const std::string elf = CheckElfFile(path); !elf.empty()) {
+    *why = "cannot load shared library: " + elf;
+    return nullptr;
+  }
+  dlerror();
+  *handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (*handle == nullptr) {
+    const char* e = dlerror();
+    *why = std::string("cannot load shared library: ") + (e ? e : "unknown dlopen error");
+    return nullptr;
+  }
+  dlerror();
+  void* symbol = dlsym(*handle, LF_ENTRY_SYMBOL);
+  if (symbol == nullptr)
+    *why = "no " LF_ENTRY_SYMBOL
+           " symbol; not a locforge plugin (build it with locforge_add_plugin and "
+           "LOCFORGE_PLUGIN)";
+  return symbol;
+}
+
+// The plugin's info from its entry point, its ABI checked (Refused when it
+// does not match: only the two fields checked first may be read before).
+const LfPluginInfo* CheckedInfo(void* symbol) {
+  LfPluginEntryFn entry = nullptr;
+  static_assert(sizeof(entry) == sizeof(symbol), "function and data pointers differ");
+  std::memcpy(&entry, &symbol, sizeof(entry));
+  const LfPluginInfo* info = CallEntry(entry);
+  if (info == nullptr)
+    throw Refused{"entry point returned NULL (the plugin does not serve host ABI version " +
+                  std::to_string(LF_ABI_VERSION) + "); rebuild it against this locforge SDK"};
+  if (info->abi_version != LF_ABI_VERSION)
+    throw Refused{"plugin ABI version " + std::to_string(info->abi_version) + ", host supports " +
+                  std::to_string(LF_ABI_VERSION) + "; rebuild the plugin against this locforge SDK"};
+  if (info->struct_size < sizeof(LfPluginInfo))
+    throw Refused{"LfPluginInfo struct_size " + std::to_string(info->struct_size) +
+                  " is smaller than this host's " + std::to_string(sizeof(LfPluginInfo)) +
+                  " for ABI version " + std::to_string(LF_ABI_VERSION) +
+                  "; rebuild the plugin against this locforge SDK"};
+  if (!info->name || !*info->name) throw Refused{"plugin name is NULL or empty"};
+  if (!info->version) throw Refused{"plugin version is NULL"};
+  return info;
+}
+
+// The plugin's stages, each id once.
+std::vector<std::unique_ptr<StageEntry>> ReadStages(const LfPluginInfo* info, LoadedPlugin* plugin) {
+  std::vector<std::unique_ptr<StageEntry>> stages;
+  const uint32_t stride = StrideOf(info->stages, info->num_stages, kStageInfoBaseSize, "LfStageInfo");
+  std::set<std::string> ids;
+  for (uint32_t i = 0; i < info->num_stages; ++i) {
+    stages.push_back(ReadStage(*Element(info->stages, stride, i), stride, plugin, i));
+    if (!ids.insert(stages.back()->id).second) throw Refused{"stage '" + stages.back()->id + "' declared twice"};
+  }
+  return stages;
+}
+
+}  // namespace
+
 bool Registry::LoadFile(const fs::path& file) {
   std::error_code ec;
   const fs::path canonical = fs::weakly_canonical(file, ec);
@@ -323,59 +389,18 @@ bool Registry::LoadFile(const fs::path& file) {
     problems_.push_back({path, name + ": " + reason});
     return false;
   };
-
-  if (const std::string why = CheckElfFile(path); !why.empty())
-    return refuse("cannot load shared library: " + why);
-  // RTLD_NOW: an unresolved symbol is reported now, not as a crash mid-run.
-  // RTLD_LOCAL: plugins cannot see (or clash with) each other's symbols.
-  dlerror();
-  void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-  if (handle == nullptr) {
-    const char* why = dlerror();
-    return refuse(std::string("cannot load shared library: ") + (why ? why : "unknown dlopen error"));
-  }
-  // From here on the library's static constructors have run: its handle is
-  // kept (never dlclose'd) so no code of it can be unmapped under our feet.
-  dlerror();
-  void* symbol = dlsym(handle, LF_ENTRY_SYMBOL);
-  if (symbol == nullptr)
-    return refuse("no " LF_ENTRY_SYMBOL
-                  " symbol; not a locforge plugin (build it with locforge_add_plugin and "
-                  "LOCFORGE_PLUGIN)");
+  void* handle = nullptr;
+  std::string why;
+  void* symbol = EntrySymbol(path, &handle, &why);
+  if (symbol == nullptr) return refuse(why);
 
   auto plugin = std::make_unique<LoadedPlugin>();
   plugin->file = path;
   plugin->handle = handle;
   std::vector<std::unique_ptr<StageEntry>> stages;
   try {
-    LfPluginEntryFn entry = nullptr;
-    static_assert(sizeof(entry) == sizeof(symbol), "function and data pointers differ");
-    std::memcpy(&entry, &symbol, sizeof(entry));
-    const LfPluginInfo* info = CallEntry(entry);
-    if (info == nullptr)
-      throw Refused{"entry point returned NULL (the plugin does not serve host ABI version " +
-                    std::to_string(LF_ABI_VERSION) + "); rebuild it against this locforge SDK"};
-    // Only these two fields may be read before they are checked.
-    if (info->abi_version != LF_ABI_VERSION)
-      throw Refused{"plugin ABI version " + std::to_string(info->abi_version) +
-                    ", host supports " + std::to_string(LF_ABI_VERSION) +
-                    "; rebuild the plugin against this locforge SDK"};
-    if (info->struct_size < sizeof(LfPluginInfo))
-      throw Refused{"LfPluginInfo struct_size " + std::to_string(info->struct_size) +
-                    " is smaller than this host's " + std::to_string(sizeof(LfPluginInfo)) +
-                    " for ABI version " + std::to_string(LF_ABI_VERSION) +
-                    "; rebuild the plugin against this locforge SDK"};
-    if (!info->name || !*info->name) throw Refused{"plugin name is NULL or empty"};
-    if (!info->version) throw Refused{"plugin version is NULL"};
-    plugin->info = info;
-    const uint32_t stride =
-        StrideOf(info->stages, info->num_stages, kStageInfoBaseSize, "LfStageInfo");
-    std::set<std::string> ids;
-    for (uint32_t i = 0; i < info->num_stages; ++i) {
-      stages.push_back(ReadStage(*Element(info->stages, stride, i), stride, plugin.get(), i));
-      if (!ids.insert(stages.back()->id).second)
-        throw Refused{"stage '" + stages.back()->id + "' declared twice"};
-    }
+    plugin->info = CheckedInfo(symbol);
+    stages = ReadStages(plugin->info, plugin.get());
   } catch (const Refused& r) {
     return refuse(r.reason);
   } catch (const std::exception& e) {

@@ -293,101 +293,136 @@ std::vector<std::string> ListItems(const StageEntry& stage, void* instance, Cont
   return list.items;
 }
 
+// This shard's items not journaled yet (result: its item counts).
+std::vector<std::string> PendingItems(const std::vector<std::string>& all_items, const fs::path& journal_dir,
+                                      const RunOptions& o, RunResult* result) {
+  const std::set<std::string> done = internal::ReadJournals(journal_dir);
+  std::vector<std::string> pending;
+  for (const auto& item : all_items) {
+    if (ShardOfItem(item, o.shard_count) != o.shard_index) continue;
+    ++result->items_total;
+    if (done.count(item)) ++result->items_resumed;
+    else pending.push_back(item);
+  }
+  return pending;
+}
+
+// The pending items processed side by side, each journaled once done.
+struct ItemWork {
+  const StageEntry& stage;
+  void* instance;
+  const RunOptions& o;
+  ContextData* data;
+  const std::vector<std::string>& pending;
+  const uint64_t total;
+  internal::JournalWriter& journal;
+  // Guards failures and counters, and serialises progress with log callbacks.
+  std::mutex& mutex;
+  std::vector<ItemFailure> failures;
+  uint64_t finished;
+  std::atomic<size_t> next{0};
+  std::atomic<uint64_t> processed{0};
+  std::atomic<bool> cancelled{false};
+
+  // One item done: journaled and counted (a journal error fails the item).
+  void Record(const std::string& item, CallStatus s) {
+    if (s.ok()) {
+      try {
+        journal.Append(item);
+      } catch (const std::exception& e) {
+        s = {LF_ERROR, e.what()};
+      }
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    if (s.ok()) {
+      ++processed;
+      ++finished;
+      if (o.progress) {
+        try {
+          o.progress(finished, total, item);
+        } catch (...) {
+        }
+      }
+    } else {
+      failures.push_back({item, s});
+    }
+  }
+
+  // A worker: the next pending item until none is left or the run is cancelled.
+  void Work(int item_threads) {
+    const LfRunContext ctx = data->Make(item_threads);
+    while (true) {
+      if (IsCancelled(o)) {
+        cancelled = true;
+        return;
+      }
+      const size_t i = next.fetch_add(1);
+      if (i >= pending.size()) return;
+      const std::string& item = pending[i];
+      const CallStatus s = CallPlugin([&](LfError* err) {
+        return stage.info->process_item(instance, &ctx, item.c_str(), err);
+      });
+      if (s.code == LF_CANCELLED) {
+        cancelled = true;
+        return;
+      }
+      Record(item, s);
+    }
+  }
+
+  // Parallel items get one thread each; a lone worker may use them all.
+  void Run() {
+    const bool serial = (stage.info->flags & LF_STAGE_SERIAL_ITEMS) != 0;
+    const int workers = static_cast<int>(std::min<size_t>(
+        serial ? 1 : static_cast<size_t>(std::max(1, o.threads)), std::max<size_t>(1, pending.size())));
+    const int item_threads = workers > 1 ? 1 : std::max(1, o.threads);
+    std::vector<std::thread> pool;
+    for (int w = 1; w < workers; ++w) pool.emplace_back([this, item_threads] { Work(item_threads); });
+    Work(item_threads);
+    for (auto& t : pool) t.join();
+  }
+};
+
+// Finalizes once every item of every shard is journaled (by any shard
+// count): false when other shards are still pending.
+bool FinalizeWhenAllDone(const StageEntry& stage, void* instance, const RunOptions& o, ContextData* data,
+                         const std::vector<std::string>& all_items, const fs::path& journal_dir) {
+  const std::set<std::string> done = internal::ReadJournals(journal_dir);
+  for (const auto& item : all_items)
+    if (!done.count(item)) return false;
+  RemoveItemFailureLists(journal_dir);
+  const LfRunContext ctx = data->Make(o.threads);
+  const CallStatus s = CallPlugin([&](LfError* err) { return stage.info->finalize(instance, &ctx, err); });
+  if (!s.ok()) ThrowStatus(stage.id + ": finalize", s);
+  return true;
+}
+
 RunResult RunPerItem(const StageEntry& stage, void* instance, const RunOptions& o,
                      ContextData* data) {
   data->state().plugin_progress = false;  // progress is counted here, per item
   const fs::path journal_dir = o.journal_dir.empty() ? o.output_dir : o.journal_dir;
   const std::vector<std::string> all_items = ListItems(stage, instance, data, o.threads);
-
-  std::set<std::string> done = internal::ReadJournals(journal_dir);
-  std::vector<std::string> pending;
   RunResult result;
-  for (const auto& item : all_items) {
-    if (ShardOfItem(item, o.shard_count) != o.shard_index) continue;
-    ++result.items_total;
-    if (done.count(item)) ++result.items_resumed;
-    else pending.push_back(item);
-  }
-
-  const bool serial = (stage.info->flags & LF_STAGE_SERIAL_ITEMS) != 0;
-  const int workers = static_cast<int>(std::min<size_t>(
-      serial ? 1 : static_cast<size_t>(std::max(1, o.threads)), std::max<size_t>(1, pending.size())));
-  // Parallel items get one thread each; a lone worker may use them all.
-  const int item_threads = workers > 1 ? 1 : std::max(1, o.threads);
-
-  // Guards failures and counters, and serialises progress with log callbacks.
-  std::mutex& mutex = data->state().mutex;
+  const std::vector<std::string> pending = PendingItems(all_items, journal_dir, o, &result);
+  if (o.progress && !pending.empty()) o.progress(result.items_resumed, result.items_total, "");
   std::vector<ItemFailure> failures;
-  uint64_t finished = result.items_resumed;
-  std::atomic<size_t> next{0};
-  std::atomic<uint64_t> processed{0};
-  std::atomic<bool> cancelled{false};
-  if (o.progress && !pending.empty()) o.progress(finished, result.items_total, "");
-
+  bool cancelled = false;
   if (!pending.empty()) {
     std::error_code ec;
     fs::remove(ItemFailuresPath(journal_dir, o.shard_index, o.shard_count), ec);  // a retry re-lists
     internal::JournalWriter journal(internal::JournalPath(journal_dir, o.shard_index, o.shard_count));
-    auto work = [&] {
-      const LfRunContext ctx = data->Make(item_threads);
-      while (true) {
-        if (IsCancelled(o)) {
-          cancelled = true;
-          return;
-        }
-        const size_t i = next.fetch_add(1);
-        if (i >= pending.size()) return;
-        const std::string& item = pending[i];
-        CallStatus s = CallPlugin([&](LfError* err) {
-          return stage.info->process_item(instance, &ctx, item.c_str(), err);
-        });
-        if (s.code == LF_CANCELLED) {
-          cancelled = true;
-          return;
-        }
-        if (s.ok()) {
-          try {
-            journal.Append(item);
-          } catch (const std::exception& e) {
-            s = {LF_ERROR, e.what()};
-          }
-        }
-        std::lock_guard<std::mutex> lock(mutex);
-        if (s.ok()) {
-          ++processed;
-          ++finished;
-          if (o.progress) {
-            try {
-              o.progress(finished, result.items_total, item);
-            } catch (...) {
-            }
-          }
-        } else {
-          failures.push_back({item, s});
-        }
-      }
-    };
-    std::vector<std::thread> pool;
-    for (int w = 1; w < workers; ++w) pool.emplace_back(work);
-    work();
-    for (auto& t : pool) t.join();
+    ItemWork work{stage, instance, o, data, pending, result.items_total, journal, data->state().mutex, {},
+                  result.items_resumed};
+    work.Run();
+    result.items_processed = work.processed.load();
+    failures = std::move(work.failures);
+    cancelled = work.cancelled;
   }
-  result.items_processed = processed.load();
   if (!failures.empty())
     ThrowItemFailures(stage.id, std::move(failures), static_cast<uint64_t>(pending.size()),
                       ItemFailuresPath(journal_dir, o.shard_index, o.shard_count));
   if (cancelled) throw Cancelled();
-
-  // Finalize once every item of every shard is journaled (by any shard count).
-  done = internal::ReadJournals(journal_dir);
-  for (const auto& item : all_items)
-    if (!done.count(item)) return result;  // other shards still pending
-  RemoveItemFailureLists(journal_dir);
-  const LfRunContext ctx = data->Make(o.threads);
-  const CallStatus s =
-      CallPlugin([&](LfError* err) { return stage.info->finalize(instance, &ctx, err); });
-  if (!s.ok()) ThrowStatus(stage.id + ": finalize", s);
-  result.complete = true;
+  result.complete = FinalizeWhenAllDone(stage, instance, o, data, all_items, journal_dir);
   return result;
 }
 

@@ -301,6 +301,356 @@ std::vector<SensorStats> PerSensorStats(const BAProblem& problem) {
   return stats;
 }
 
+namespace {
+
+// The Ceres problem of one adjustment, the manifolds and the loss its blocks
+// point to (not owned by the problem), and what the steps learn on the way.
+struct Assembly {
+  static ceres::Problem::Options ProblemOptions() {
+    ceres::Problem::Options o;
+    o.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    o.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    return o;
+  }
+  Assembly(const SplineBAOptions& options, BAProblem* problem, Parameters* x, SplineBAResult* result)
+      : options(options),
+        problem(*problem),
+        x(*x),
+        result(*result),
+        ceres(ProblemOptions()),
+        cauchy(options.cauchy_scale_px),
+        image_observed(problem->images.size(), false),
+        sensor_in_prior(problem->sensors.size(), false) {}
+
+  const SplineBAOptions& options;
+  BAProblem& problem;
+  Parameters& x;
+  SplineBAResult& result;
+  ceres::Problem ceres;
+  ceres::EigenQuaternionManifold quaternion;
+  ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>> se3;
+  ceres::CauchyLoss cauchy;
+  std::unique_ptr<ceres::SubsetManifold> scale_gauge;
+  std::vector<std::unique_ptr<LinearSubspaceManifold>> restricted_intrinsics;
+  std::vector<bool> image_observed;   // by image: has a reprojection residual
+  std::vector<bool> sensor_in_prior;  // by sensor: an image of it has a spline pose residual
+  std::vector<double*> log_scales;    // of the trajectories with images
+};
+
+// The problem's parameters, with the splines fitted to the LiDAR samples when
+// used, packed into one arena. Twice the bound: the arena never falls back to
+// the heap (which would still be correct, only no longer deterministic).
+void PackParameters(const SplineBAOptions& options, const BAProblem& problem, std::vector<std::byte>* buffer,
+                    std::optional<std::pmr::monotonic_buffer_resource>* arena, std::optional<Parameters>* packed) {
+  Parameters loose;
+  CopyIn(problem, &loose);
+  if (options.use_spline_prior) FitSplines(problem, options.knot_spacing_s, &loose);
+  buffer->resize(2 * PackedBytes(loose));
+  arena->emplace(buffer->data(), buffer->size());
+  packed->emplace(&**arena);
+  Pack(loose, &**packed);
+}
+
+// (1) Reprojection errors of the observations in front of their camera.
+void AddReprojectionErrors(Assembly& a) {
+  for (const auto& o : a.problem.observations) {
+    Eigen::Vector2d xy;
+    if (!InFront(a.problem, o, &xy)) continue;
+    const auto& im = a.problem.images[o.image];
+    a.ceres.AddResidualBlock(CreateReprojectionError(a.problem.sensors[im.sensor].camera.model, o.xy), &a.cauchy,
+                             a.x.image_q[o.image].data(), a.x.image_t[o.image].data(), a.x.points[o.point].data(),
+                             a.x.intrinsics[im.sensor].data());
+    a.image_observed[o.image] = true;
+    ++a.result.num_observations;
+  }
+}
+
+// (2) Spline pose errors of the observed images.
+void AddSplinePoseErrors(Assembly& a) {
+  Parameters& x = a.x;
+  const auto w = SqrtInformation(a.options.prior_sigma_rotation_rad, a.options.prior_sigma_translation_m);
+  for (size_t i = 0; i < a.problem.images.size(); ++i) {
+    const auto& im = a.problem.images[i];
+    if (!a.image_observed[i] || im.trajectory < 0) continue;
+    int s;
+    double u;
+    const SE3Spline& spline = x.splines[im.trajectory];
+    spline.Locate(im.time_s + x.time_offsets[im.sensor], &s, &u);
+    // u relative to the segment at time_s (the offset is added inside).
+    u = (im.time_s - spline.t0) / spline.dt - s;
+    auto& c = x.controls[im.trajectory];
+    a.ceres.AddResidualBlock(
+        SplinePoseError::Create(u, spline.dt, a.problem.sensors[im.sensor].T_body_camera.t, w), nullptr, c[s].data(),
+        c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), x.image_q[i].data(), x.image_t[i].data(),
+        x.q_body_camera[im.sensor].data(), &x.time_offsets[im.sensor]);
+    a.sensor_in_prior[im.sensor] = true;
+    ++a.result.num_prior_residuals;
+  }
+}
+
+// Trajectory t's spline to each of its LiDAR samples, weighted wg, through
+// its alignment g and log scale ls when given (null: not estimated).
+void AddSampleErrors(Assembly& a, size_t t, const Eigen::Matrix<double, 6, 1>& wg, double* g, double* ls) {
+  auto& c = a.x.controls[t];
+  const auto& tr = a.problem.trajectories[t];
+  for (size_t i = 0; i < tr.times_s.size(); ++i) {
+    int s;
+    double u;
+    a.x.splines[t].Locate(tr.times_s[i], &s, &u);
+    if (g && ls)
+      a.ceres.AddResidualBlock(ScaledSplineSampleError::CreateAligned(u, tr.T_world_body[i], wg), nullptr,
+                               c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), g, ls);
+    else if (ls)
+      a.ceres.AddResidualBlock(ScaledSplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr, c[s].data(),
+                               c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), ls);
+    else if (g)
+      a.ceres.AddResidualBlock(SplineSampleError::CreateAligned(u, tr.T_world_body[i], wg), nullptr, c[s].data(),
+                               c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), g);
+    else
+      a.ceres.AddResidualBlock(SplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr, c[s].data(),
+                               c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
+    ++a.result.num_prior_residuals;
+  }
+}
+
+// The alignment g's prior to the identity and the log scale ls's prior to 0.
+void AddAlignmentPriors(Assembly& a, const Eigen::Matrix<double, 6, 1>& wa, double* g, double* ls) {
+  if (g) {
+    a.ceres.AddResidualBlock(ControlPoseError::Create(Pose(), wa), nullptr, g);
+    a.ceres.SetManifold(g, &a.se3);
+    ++a.result.num_prior_residuals;
+  }
+  if (ls) {
+    a.ceres.AddResidualBlock(new ScalarSumError(1, 1.0 / a.options.trajectory_scale_sigma), nullptr, ls);
+    a.log_scales.push_back(ls);
+    ++a.result.num_prior_residuals;
+  }
+}
+
+// (3) The weak gauge prior of each used spline to its LiDAR samples (through
+// its alignment to the first one and its scale when estimated); without it
+// one control pose is held.
+void AddTrajectoryPriors(Assembly& a) {
+  const SplineBAOptions& options = a.options;
+  Parameters& x = a.x;
+  const bool gauge_prior =
+      options.trajectory_prior_sigma_rotation_rad > 0 && options.trajectory_prior_sigma_translation_m > 0;
+  const auto wg = gauge_prior ? SqrtInformation(options.trajectory_prior_sigma_rotation_rad,
+                                                options.trajectory_prior_sigma_translation_m)
+                              : Eigen::Matrix<double, 6, 1>::Zero().eval();
+  bool fixed_one = false;
+  std::array<double, 7> identity;
+  PoseToArray(Pose(), identity.data());
+  x.alignments.assign(x.controls.size(), identity);
+  x.log_scales.assign(x.controls.size(), 0.0);
+  const auto wa = SqrtInformation(options.alignment_sigma_rotation_rad, options.alignment_sigma_translation_m);
+  bool reference_taken = false;
+  for (size_t t = 0; t < x.controls.size(); ++t) {
+    auto& c = x.controls[t];
+    if (c.empty()) continue;
+    // The first trajectory with images is the reference of the alignments.
+    double* g = nullptr;
+    if (options.align_trajectories && reference_taken) g = x.alignments[t].data();
+    reference_taken = true;
+    double* ls = options.scale_trajectories && gauge_prior ? &x.log_scales[t] : nullptr;
+    // Every control pose needs a residual to be in the problem; controls
+    // no image touches are simply not adjusted (and written back as fitted).
+    if (gauge_prior) {
+      AddSampleErrors(a, t, wg, g, ls);
+      AddAlignmentPriors(a, wa, g, ls);
+    }
+    for (auto& ck : c)
+      if (a.ceres.HasParameterBlock(ck.data())) {
+        a.ceres.SetManifold(ck.data(), &a.se3);
+        if (!gauge_prior && !fixed_one) {
+          a.ceres.SetParameterBlockConstant(ck.data());
+          fixed_one = true;
+        }
+      }
+  }
+}
+
+// Wheeled-base kinematics, once per segment whose controls are adjusted.
+void AddNonholonomicErrors(Assembly& a) {
+  if (!(a.options.nonholonomic_sigma_mps > 0)) return;
+  for (size_t t = 0; t < a.x.controls.size(); ++t) {
+    auto& c = a.x.controls[t];
+    for (int s = 0; s + 3 < static_cast<int>(c.size()); ++s) {
+      bool adjusted = true;
+      for (int j = 0; j < 4; ++j) adjusted = adjusted && a.ceres.HasParameterBlock(c[s + j].data());
+      if (!adjusted) continue;
+      a.ceres.AddResidualBlock(NonholonomicError::Create(a.x.splines[t].dt, a.options.nonholonomic_sigma_mps),
+                               nullptr, c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
+      ++a.result.num_prior_residuals;
+    }
+  }
+}
+
+// Without splines: the first observed image held, and the scale by the one
+// coordinate of the farthest image's offset from it that varies most.
+void HoldImageGauge(Assembly& a) {
+  const std::vector<bool>& observed = a.image_observed;
+  const auto& images = a.problem.images;
+  const size_t first = std::find(observed.begin(), observed.end(), true) - observed.begin();
+  a.ceres.SetParameterBlockConstant(a.x.image_q[first].data());
+  a.ceres.SetParameterBlockConstant(a.x.image_t[first].data());
+  const Eigen::Vector3d c0 = images[first].T_world_camera.t;
+  size_t far = first;
+  double best = 0;
+  for (size_t i = 0; i < images.size(); ++i)
+    if (observed[i] && (images[i].T_world_camera.t - c0).norm() > best) {
+      best = (images[i].T_world_camera.t - c0).norm();
+      far = i;
+    }
+  if (far != first) {
+    int axis;
+    (images[far].T_world_camera.t - c0).cwiseAbs().maxCoeff(&axis);
+    a.scale_gauge = std::make_unique<ceres::SubsetManifold>(3, std::vector<int>{axis});
+    a.ceres.SetManifold(a.x.image_t[far].data(), a.scale_gauge.get());
+  }
+}
+
+// Sensor s's intrinsics: held, or free in the subspace the options allow.
+void SetIntrinsics(Assembly& a, size_t s) {
+  const auto& sensor = a.problem.sensors[s];
+  double* k = a.x.intrinsics[s].data();
+  if (!a.ceres.HasParameterBlock(k)) return;
+  if (!(a.options.calibrate_intrinsics && sensor.calibrate_intrinsics)) {
+    a.ceres.SetParameterBlockConstant(k);
+  } else {
+    const Eigen::MatrixXd basis = IntrinsicsBasis(sensor.camera.model, sensor.camera.params,
+                                                  a.options.fix_aspect_ratio, a.options.refine_principal_point);
+    if (basis.size() > 0) {
+      a.restricted_intrinsics.push_back(std::make_unique<LinearSubspaceManifold>(basis));
+      a.ceres.SetManifold(k, a.restricted_intrinsics.back().get());
+    }
+  }
+}
+
+// Sensor s's rotation to the body and clock offset (when in the spline prior):
+// held, or free (the offset within +-max_time_offset_s).
+void SetExtrinsics(Assembly& a, size_t s) {
+  if (!a.sensor_in_prior[s]) return;
+  const SplineBAOptions& options = a.options;
+  double* q = a.x.q_body_camera[s].data();
+  a.ceres.SetManifold(q, &a.quaternion);
+  if (!(options.calibrate_rotations && a.problem.sensors[s].calibrate_rotation)) a.ceres.SetParameterBlockConstant(q);
+  double* d = &a.x.time_offsets[s];
+  if (options.estimate_time_offsets) {
+    a.ceres.SetParameterLowerBound(d, 0, -options.max_time_offset_s);
+    a.ceres.SetParameterUpperBound(d, 0, options.max_time_offset_s);
+    a.x.time_offsets[s] = std::clamp(a.x.time_offsets[s], -options.max_time_offset_s, options.max_time_offset_s);
+  } else {
+    a.ceres.SetParameterBlockConstant(d);
+  }
+}
+
+// The clock offsets' gauge: their sum held at 0 (1e-5 s per unit of the sum:
+// stiff against the offsets' own information).
+void AddTimeOffsetGauge(Assembly& a) {
+  if (!(a.options.estimate_time_offsets && a.options.zero_mean_time_offsets)) return;
+  std::vector<double*> offsets;
+  for (size_t s = 0; s < a.problem.sensors.size(); ++s)
+    if (a.sensor_in_prior[s]) offsets.push_back(&a.x.time_offsets[s]);
+  if (offsets.size() >= 2)
+    a.ceres.AddResidualBlock(new ScalarSumError(static_cast<int>(offsets.size()), 1e5), nullptr, offsets);
+}
+
+// Manifolds and what is held constant.
+void SetManifoldsAndConstants(Assembly& a, bool splines) {
+  for (size_t i = 0; i < a.problem.images.size(); ++i)
+    if (a.image_observed[i]) a.ceres.SetManifold(a.x.image_q[i].data(), &a.quaternion);
+  if (!splines && a.options.fix_gauge) HoldImageGauge(a);
+  for (size_t s = 0; s < a.problem.sensors.size(); ++s) {
+    SetIntrinsics(a, s);
+    SetExtrinsics(a, s);
+  }
+  AddTimeOffsetGauge(a);
+  if (!a.options.refine_points)
+    for (auto& p : a.x.points)
+      if (a.ceres.HasParameterBlock(p.data())) a.ceres.SetParameterBlockConstant(p.data());
+}
+
+// Schur elimination of the points (null: no point to eliminate).
+std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(Assembly& a) {
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  std::vector<double*> blocks;
+  a.ceres.GetParameterBlocks(&blocks);
+  for (double* b : blocks) ordering->AddElementToGroup(b, 1);
+  for (auto& p : a.x.points)
+    if (a.ceres.HasParameterBlock(p.data()) && !a.ceres.IsParameterBlockConstant(p.data()))
+      ordering->AddElementToGroup(p.data(), 0);
+  if (ordering->GroupSize(0) == 0) ordering = nullptr;
+  return ordering;
+}
+
+// The tangent-space size of the variable blocks.
+int FreeParameters(const ceres::Problem& problem) {
+  std::vector<double*> blocks;
+  problem.GetParameterBlocks(&blocks);
+  int n = problem.NumParameters();
+  for (double* b : blocks)
+    n += problem.IsParameterBlockConstant(b) ? -problem.ParameterBlockSize(b)
+                                             : problem.ParameterBlockTangentSize(b) - problem.ParameterBlockSize(b);
+  return n;
+}
+
+ceres::Solver::Options SolverOptions(const SplineBAOptions& options,
+                                     std::shared_ptr<ceres::ParameterBlockOrdering> ordering, size_t images) {
+  ceres::Solver::Options solver;
+  const bool iterative = options.linear_solver == "iterative_schur" ||
+                         (options.linear_solver == "auto" && static_cast<int>(images) > options.sparse_schur_max_images);
+  solver.linear_solver_type = ordering ? (iterative ? ceres::ITERATIVE_SCHUR : ceres::SPARSE_SCHUR)
+                                       : ceres::SPARSE_NORMAL_CHOLESKY;
+  solver.preconditioner_type = ceres::SCHUR_JACOBI;
+  solver.linear_solver_ordering = ordering;
+  solver.eta = options.iterative_eta;
+  solver.max_num_iterations = options.max_iterations;
+  solver.function_tolerance = options.function_tolerance;
+  solver.gradient_tolerance = options.gradient_tolerance;
+  solver.parameter_tolerance = options.parameter_tolerance;
+  solver.num_threads = options.num_threads;
+  solver.minimizer_progress_to_stdout = options.verbose;
+  solver.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  return solver;
+}
+
+// Builds the problem: residuals (1) to (3) and the kinematics, then the
+// manifolds and what is held; false when no observation is in front of its camera.
+bool BuildProblem(Assembly& a, bool splines) {
+  AddReprojectionErrors(a);
+  if (a.result.num_observations == 0) return false;
+  if (splines) {
+    AddSplinePoseErrors(a);
+    AddTrajectoryPriors(a);
+    AddNonholonomicErrors(a);
+    // The map keeps the LiDAR's mean scale (as the clock offsets' gauge).
+    if (a.log_scales.size() > 1)
+      a.ceres.AddResidualBlock(new ScalarSumError(static_cast<int>(a.log_scales.size()), 1e5), nullptr,
+                               a.log_scales);
+  }
+  SetManifoldsAndConstants(a, splines);
+  return true;
+}
+
+// The solver's summary into the result, and the estimate into the problem when usable.
+void ReadBack(const ceres::Solver::Summary& summary, const Parameters& x, bool splines, BAProblem* problem,
+              SplineBAResult* result) {
+  result->iterations = static_cast<int>(summary.iterations.size()) - 1;
+  result->initial_cost = summary.initial_cost;
+  result->final_cost = summary.final_cost;
+  result->converged = summary.termination_type == ceres::CONVERGENCE;
+  result->usable = summary.IsSolutionUsable();
+  result->message = summary.message;
+  if (result->usable) {
+    CopyOut(x, splines, problem, result);
+    result->final_mean_reproj_px = MeanReprojectionError(*problem);
+  }
+}
+
+}  // namespace
+
+// Build problem -> solve -> read back.
 SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
   const auto start = std::chrono::steady_clock::now();
   SplineBAResult result;
@@ -322,259 +672,19 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
   std::vector<std::byte> buffer;
   std::optional<std::pmr::monotonic_buffer_resource> arena;
   std::optional<Parameters> packed;
-  {
-    Parameters loose;
-    CopyIn(*problem, &loose);
-    if (splines) FitSplines(*problem, options.knot_spacing_s, &loose);
-    // Twice the bound: the arena never falls back to the heap (which would
-    // still be correct, only no longer deterministic).
-    buffer.resize(2 * PackedBytes(loose));
-    arena.emplace(buffer.data(), buffer.size());
-    packed.emplace(&*arena);
-    Pack(loose, &*packed);
-  }
+  PackParameters(options, *problem, &buffer, &arena, &packed);
   Parameters& x = *packed;
-
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem ceres_problem(problem_options);
-  ceres::EigenQuaternionManifold quaternion;
-  ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>> se3;
-  ceres::CauchyLoss cauchy(options.cauchy_scale_px);
-
-  // (1) Reprojection errors of the observations in front of their camera.
-  std::vector<bool> image_observed(problem->images.size(), false);
-  for (const auto& o : problem->observations) {
-    Eigen::Vector2d xy;
-    if (!InFront(*problem, o, &xy)) continue;
-    const auto& im = problem->images[o.image];
-    ceres_problem.AddResidualBlock(CreateReprojectionError(problem->sensors[im.sensor].camera.model, o.xy), &cauchy,
-                                   x.image_q[o.image].data(), x.image_t[o.image].data(), x.points[o.point].data(),
-                                   x.intrinsics[im.sensor].data());
-    image_observed[o.image] = true;
-    ++result.num_observations;
-  }
-  if (result.num_observations == 0) {
+  Assembly a(options, problem, &x, &result);
+  if (!BuildProblem(a, splines)) {
     result.message = "nothing to adjust: no observation in front of its camera";
     result.seconds = elapsed();
     return result;
   }
-
-  // (2) Spline pose errors of the observed images, (3) the weak gauge prior
-  // of each used spline to its LiDAR samples.
-  std::vector<bool> sensor_in_prior(problem->sensors.size(), false);
-  if (splines) {
-    const auto w = SqrtInformation(options.prior_sigma_rotation_rad, options.prior_sigma_translation_m);
-    for (size_t i = 0; i < problem->images.size(); ++i) {
-      const auto& im = problem->images[i];
-      if (!image_observed[i] || im.trajectory < 0) continue;
-      int s;
-      double u;
-      const SE3Spline& spline = x.splines[im.trajectory];
-      spline.Locate(im.time_s + x.time_offsets[im.sensor], &s, &u);
-      // u relative to the segment at time_s (the offset is added inside).
-      u = (im.time_s - spline.t0) / spline.dt - s;
-      auto& c = x.controls[im.trajectory];
-      ceres_problem.AddResidualBlock(
-          SplinePoseError::Create(u, spline.dt, problem->sensors[im.sensor].T_body_camera.t, w), nullptr, c[s].data(),
-          c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), x.image_q[i].data(), x.image_t[i].data(),
-          x.q_body_camera[im.sensor].data(), &x.time_offsets[im.sensor]);
-      sensor_in_prior[im.sensor] = true;
-      ++result.num_prior_residuals;
-    }
-    const bool gauge_prior =
-        options.trajectory_prior_sigma_rotation_rad > 0 && options.trajectory_prior_sigma_translation_m > 0;
-    const auto wg = gauge_prior ? SqrtInformation(options.trajectory_prior_sigma_rotation_rad,
-                                                  options.trajectory_prior_sigma_translation_m)
-                                : Eigen::Matrix<double, 6, 1>::Zero().eval();
-    bool fixed_one = false;
-    std::array<double, 7> identity;
-    PoseToArray(Pose(), identity.data());
-    x.alignments.assign(x.controls.size(), identity);
-    x.log_scales.assign(x.controls.size(), 0.0);
-    std::vector<double*> log_scales;  // of the trajectories with images
-    const auto wa = SqrtInformation(options.alignment_sigma_rotation_rad, options.alignment_sigma_translation_m);
-    bool reference_taken = false;
-    for (size_t t = 0; t < x.controls.size(); ++t) {
-      auto& c = x.controls[t];
-      if (c.empty()) continue;
-      const auto& tr = problem->trajectories[t];
-      // The first trajectory with images is the reference of the alignments.
-      double* g = nullptr;
-      if (options.align_trajectories && reference_taken) g = x.alignments[t].data();
-      reference_taken = true;
-      double* ls = options.scale_trajectories && gauge_prior ? &x.log_scales[t] : nullptr;
-      // Every control pose needs a residual to be in the problem; controls
-      // no image touches are simply not adjusted (and written back as fitted).
-      if (gauge_prior) {
-        for (size_t i = 0; i < tr.times_s.size(); ++i) {
-          int s;
-          double u;
-          x.splines[t].Locate(tr.times_s[i], &s, &u);
-          if (g && ls)
-            ceres_problem.AddResidualBlock(ScaledSplineSampleError::CreateAligned(u, tr.T_world_body[i], wg), nullptr,
-                                           c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), g, ls);
-          else if (ls)
-            ceres_problem.AddResidualBlock(ScaledSplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr,
-                                           c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), ls);
-          else if (g)
-            ceres_problem.AddResidualBlock(SplineSampleError::CreateAligned(u, tr.T_world_body[i], wg), nullptr,
-                                           c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), g);
-          else
-            ceres_problem.AddResidualBlock(SplineSampleError::Create(u, tr.T_world_body[i], wg), nullptr,
-                                           c[s].data(), c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
-          ++result.num_prior_residuals;
-        }
-        if (g) {
-          ceres_problem.AddResidualBlock(ControlPoseError::Create(Pose(), wa), nullptr, g);
-          ceres_problem.SetManifold(g, &se3);
-          ++result.num_prior_residuals;
-        }
-        if (ls) {
-          ceres_problem.AddResidualBlock(new ScalarSumError(1, 1.0 / options.trajectory_scale_sigma), nullptr, ls);
-          log_scales.push_back(ls);
-          ++result.num_prior_residuals;
-        }
-      }
-      for (auto& ck : c)
-        if (ceres_problem.HasParameterBlock(ck.data())) {
-          ceres_problem.SetManifold(ck.data(), &se3);
-          if (!gauge_prior && !fixed_one) {
-            ceres_problem.SetParameterBlockConstant(ck.data());
-            fixed_one = true;
-          }
-        }
-    }
-    // Wheeled-base kinematics, once per segment whose controls are adjusted.
-    if (options.nonholonomic_sigma_mps > 0)
-      for (size_t t = 0; t < x.controls.size(); ++t) {
-        auto& c = x.controls[t];
-        for (int s = 0; s + 3 < static_cast<int>(c.size()); ++s) {
-          bool adjusted = true;
-          for (int j = 0; j < 4; ++j) adjusted = adjusted && ceres_problem.HasParameterBlock(c[s + j].data());
-          if (!adjusted) continue;
-          ceres_problem.AddResidualBlock(
-              NonholonomicError::Create(x.splines[t].dt, options.nonholonomic_sigma_mps), nullptr, c[s].data(),
-              c[s + 1].data(), c[s + 2].data(), c[s + 3].data());
-          ++result.num_prior_residuals;
-        }
-      }
-    // The map keeps the LiDAR's mean scale (as the clock offsets' gauge).
-    if (log_scales.size() > 1)
-      ceres_problem.AddResidualBlock(new ScalarSumError(static_cast<int>(log_scales.size()), 1e5), nullptr,
-                                     log_scales);
-  }
-
-  // Manifolds and what is held constant.
-  std::unique_ptr<ceres::SubsetManifold> scale_gauge;
-  std::vector<std::unique_ptr<LinearSubspaceManifold>> restricted_intrinsics;
-  for (size_t i = 0; i < problem->images.size(); ++i)
-    if (image_observed[i]) ceres_problem.SetManifold(x.image_q[i].data(), &quaternion);
-  if (!splines && options.fix_gauge) {
-    const size_t first = std::find(image_observed.begin(), image_observed.end(), true) - image_observed.begin();
-    ceres_problem.SetParameterBlockConstant(x.image_q[first].data());
-    ceres_problem.SetParameterBlockConstant(x.image_t[first].data());
-    const Eigen::Vector3d c0 = problem->images[first].T_world_camera.t;
-    size_t far = first;
-    double best = 0;
-    for (size_t i = 0; i < problem->images.size(); ++i)
-      if (image_observed[i] && (problem->images[i].T_world_camera.t - c0).norm() > best) {
-        best = (problem->images[i].T_world_camera.t - c0).norm();
-        far = i;
-      }
-    if (far != first) {
-      int axis;
-      (problem->images[far].T_world_camera.t - c0).cwiseAbs().maxCoeff(&axis);
-      scale_gauge = std::make_unique<ceres::SubsetManifold>(3, std::vector<int>{axis});
-      ceres_problem.SetManifold(x.image_t[far].data(), scale_gauge.get());
-    }
-  }
-  for (size_t s = 0; s < problem->sensors.size(); ++s) {
-    const auto& sensor = problem->sensors[s];
-    double* k = x.intrinsics[s].data();
-    if (ceres_problem.HasParameterBlock(k)) {
-      if (!(options.calibrate_intrinsics && sensor.calibrate_intrinsics)) {
-        ceres_problem.SetParameterBlockConstant(k);
-      } else {
-        const Eigen::MatrixXd basis = IntrinsicsBasis(sensor.camera.model, sensor.camera.params,
-                                                      options.fix_aspect_ratio, options.refine_principal_point);
-        if (basis.size() > 0) {
-          restricted_intrinsics.push_back(std::make_unique<LinearSubspaceManifold>(basis));
-          ceres_problem.SetManifold(k, restricted_intrinsics.back().get());
-        }
-      }
-    }
-    double* q = x.q_body_camera[s].data();
-    if (sensor_in_prior[s]) {
-      ceres_problem.SetManifold(q, &quaternion);
-      if (!(options.calibrate_rotations && sensor.calibrate_rotation)) ceres_problem.SetParameterBlockConstant(q);
-      double* d = &x.time_offsets[s];
-      if (options.estimate_time_offsets) {
-        ceres_problem.SetParameterLowerBound(d, 0, -options.max_time_offset_s);
-        ceres_problem.SetParameterUpperBound(d, 0, options.max_time_offset_s);
-        x.time_offsets[s] = std::clamp(x.time_offsets[s], -options.max_time_offset_s, options.max_time_offset_s);
-      } else {
-        ceres_problem.SetParameterBlockConstant(d);
-      }
-    }
-  }
-  if (options.estimate_time_offsets && options.zero_mean_time_offsets) {
-    std::vector<double*> offsets;
-    for (size_t s = 0; s < problem->sensors.size(); ++s)
-      if (sensor_in_prior[s]) offsets.push_back(&x.time_offsets[s]);
-    // 1e-5 s per unit of the sum: stiff against the offsets' own information.
-    if (offsets.size() >= 2)
-      ceres_problem.AddResidualBlock(new ScalarSumError(static_cast<int>(offsets.size()), 1e5), nullptr, offsets);
-  }
-  if (!options.refine_points)
-    for (auto& p : x.points)
-      if (ceres_problem.HasParameterBlock(p.data())) ceres_problem.SetParameterBlockConstant(p.data());
-
-  // Schur elimination of the points.
-  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-  std::vector<double*> blocks;
-  ceres_problem.GetParameterBlocks(&blocks);
-  for (double* b : blocks) ordering->AddElementToGroup(b, 1);
-  for (auto& p : x.points)
-    if (ceres_problem.HasParameterBlock(p.data()) && !ceres_problem.IsParameterBlockConstant(p.data()))
-      ordering->AddElementToGroup(p.data(), 0);
-  if (ordering->GroupSize(0) == 0) ordering = nullptr;  // no points to eliminate
-  result.num_parameters = ceres_problem.NumParameters();
-  for (double* b : blocks)
-    result.num_parameters += ceres_problem.IsParameterBlockConstant(b)
-                                 ? -ceres_problem.ParameterBlockSize(b)
-                                 : ceres_problem.ParameterBlockTangentSize(b) - ceres_problem.ParameterBlockSize(b);
-
-  ceres::Solver::Options solver;
-  const bool iterative = options.linear_solver == "iterative_schur" ||
-                         (options.linear_solver == "auto" &&
-                          static_cast<int>(problem->images.size()) > options.sparse_schur_max_images);
-  solver.linear_solver_type = ordering ? (iterative ? ceres::ITERATIVE_SCHUR : ceres::SPARSE_SCHUR)
-                                       : ceres::SPARSE_NORMAL_CHOLESKY;
-  solver.preconditioner_type = ceres::SCHUR_JACOBI;
-  solver.linear_solver_ordering = ordering;
-  solver.eta = options.iterative_eta;
-  solver.max_num_iterations = options.max_iterations;
-  solver.function_tolerance = options.function_tolerance;
-  solver.gradient_tolerance = options.gradient_tolerance;
-  solver.parameter_tolerance = options.parameter_tolerance;
-  solver.num_threads = options.num_threads;
-  solver.minimizer_progress_to_stdout = options.verbose;
-  solver.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  const std::shared_ptr<ceres::ParameterBlockOrdering> ordering = SchurOrdering(a);
+  result.num_parameters = FreeParameters(a.ceres);
   ceres::Solver::Summary summary;
-  ceres::Solve(solver, &ceres_problem, &summary);
-
-  result.iterations = static_cast<int>(summary.iterations.size()) - 1;
-  result.initial_cost = summary.initial_cost;
-  result.final_cost = summary.final_cost;
-  result.converged = summary.termination_type == ceres::CONVERGENCE;
-  result.usable = summary.IsSolutionUsable();
-  result.message = summary.message;
-  if (result.usable) {
-    CopyOut(x, splines, problem, &result);
-    result.final_mean_reproj_px = MeanReprojectionError(*problem);
-  }
+  ceres::Solve(SolverOptions(options, ordering, problem->images.size()), &a.ceres, &summary);
+  ReadBack(summary, x, splines, problem, &result);
   result.seconds = elapsed();
   return result;
 }

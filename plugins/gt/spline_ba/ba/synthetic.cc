@@ -35,31 +35,38 @@ Eigen::Vector3d RandomUnit(std::mt19937& rng) {
   return Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
 }
 
-}  // namespace
+// The truth and the initial problem of one scene, drawn from one random
+// stream in a fixed order (the draws' order is the scene: keep it).
+struct SceneMaker {
+  explicit SceneMaker(const SyntheticOptions& o) : o(o), rng(o.seed), normal(0, 1), uniform(0, 1) {}
 
-SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
-  std::mt19937 rng(o.seed);
-  std::normal_distribution<double> normal(0, 1);
-  std::uniform_real_distribution<double> uniform(0, 1);
+  const SyntheticOptions& o;
+  std::mt19937 rng;
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> uniform;
   SyntheticScene scene;
   BAProblem& truth = scene.truth;
   BAProblem& init = scene.initial;
+  double a = 0, b = 0;  // the ellipse's half axes
+  std::vector<Motion> motions;
+  std::vector<double> rates, offsets;  // by camera: images per second, clock offset
+
+  static double SequenceT0(int k) { return 1000.0 * k; }  // each sequence on its own clock range
 
   // Ellipse sized so that every sequence covers ~2 rad at the given speed.
-  const double path = o.speed_mps * o.duration_s;
-  const double a = std::max(6.0, path / 2.0 / 1.3), b = 0.6 * a;
-  const double omega = o.speed_mps / (0.8 * a);
-  std::vector<Motion> motions;
-  for (int k = 0; k < o.sequences; ++k)
-    motions.push_back({a, b, omega, 0.5 * omega * o.duration_s * k, 0.9 * k});
-  auto sequence_t0 = [](int k) { return 1000.0 * k; };  // each sequence on its own clock range
+  void MakeMotions() {
+    const double path = o.speed_mps * o.duration_s;
+    a = std::max(6.0, path / 2.0 / 1.3), b = 0.6 * a;
+    const double omega = o.speed_mps / (0.8 * a);
+    for (int k = 0; k < o.sequences; ++k) motions.push_back({a, b, omega, 0.5 * omega * o.duration_s * k, 0.9 * k});
+  }
 
-  // Cameras.
-  const Eigen::Matrix3d R0 = (Eigen::Matrix3d() << 0, 0, 1, -1, 0, 0, 0, -1, 0).finished();
-  const CameraModelId models[] = {CameraModelId::kPinhole, CameraModelId::kSimpleRadial, CameraModelId::kOpenCV,
-                                  CameraModelId::kRadial, CameraModelId::kSimplePinhole};
-  std::vector<double> rates, offsets;
-  for (int c = 0; c < o.cameras; ++c) {
+  // Camera c: industrial (even c) or smartphone (odd c), models in turn,
+  // looking outwards at yaw 2 pi c / cameras, 10 deg down.
+  static BAProblem::Sensor TrueCamera(int c, int cameras) {
+    const Eigen::Matrix3d R0 = (Eigen::Matrix3d() << 0, 0, 1, -1, 0, 0, 0, -1, 0).finished();
+    const CameraModelId models[] = {CameraModelId::kPinhole, CameraModelId::kSimpleRadial, CameraModelId::kOpenCV,
+                                    CameraModelId::kRadial, CameraModelId::kSimplePinhole};
     const bool phone = c % 2 == 1;
     const int w = phone ? 540 : 648, h = phone ? 720 : 512;
     const double f = 0.5 * std::hypot(w, h) / std::tan(0.5 * (phone ? 77.0 : 95.0) * kDeg);
@@ -74,7 +81,7 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
       case CameraModelId::kRadial: cam.params = {f, w / 2.0, h / 2.0, -0.03, 0.005}; break;
       default: cam.params = {f, w / 2.0, h / 2.0}; break;
     }
-    const double yaw = 2 * M_PI * c / o.cameras;
+    const double yaw = 2 * M_PI * c / cameras;
     const Eigen::Quaterniond q_bc(Rot(Eigen::Vector3d::UnitZ(), yaw) * Rot(Eigen::Vector3d::UnitY(), -10 * kDeg) *
                                   Eigen::Quaterniond(R0));
     const Eigen::Vector3d t_bc = Rot(Eigen::Vector3d::UnitZ(), yaw) * Eigen::Vector3d(0.25, 0, 0) +
@@ -82,24 +89,38 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
     BAProblem::Sensor s;
     s.camera = cam;
     s.T_body_camera = Pose(q_bc, t_bc);
-    truth.sensors.push_back(s);
-    // Perturbed calibration.
+    return s;
+  }
+
+  // The calibration the adjustment starts from: focal lengths scaled, the
+  // principal point moved, the rotation turned.
+  BAProblem::Sensor PerturbedCamera(const BAProblem::Sensor& s) {
     BAProblem::Sensor p = s;
     const double sign = uniform(rng) < 0.5 ? -1 : 1;
-    const bool two_focals = cam.model == CameraModelId::kPinhole || cam.model == CameraModelId::kOpenCV;
+    const bool two_focals = s.camera.model == CameraModelId::kPinhole || s.camera.model == CameraModelId::kOpenCV;
     const int pp = two_focals ? 2 : 1;
     p.camera.params[0] *= 1 + sign * o.focal_perturbation;
     if (two_focals) p.camera.params[1] *= 1 + sign * o.focal_perturbation;
     p.camera.params[pp] += o.principal_point_perturbation_px * normal(rng);
     p.camera.params[pp + 1] += o.principal_point_perturbation_px * normal(rng);
     p.T_body_camera.q = (Rot(RandomUnit(rng), o.rotation_perturbation_deg * kDeg) * s.T_body_camera.q).normalized();
-    init.sensors.push_back(p);
-    rates.push_back(phone ? 1.0 : 2.5);
-    offsets.push_back(o.clock_offset_sigma_s * normal(rng));
+    return p;
   }
 
-  // Trajectories: true and LiDAR-like samples at 10 Hz, 1 s beyond the images.
-  for (int k = 0; k < o.sequences; ++k) {
+  void AddCameras() {
+    for (int c = 0; c < o.cameras; ++c) {
+      const bool phone = c % 2 == 1;
+      const BAProblem::Sensor s = TrueCamera(c, o.cameras);
+      truth.sensors.push_back(s);
+      init.sensors.push_back(PerturbedCamera(s));
+      rates.push_back(phone ? 1.0 : 2.5);
+      offsets.push_back(o.clock_offset_sigma_s * normal(rng));
+    }
+  }
+
+  // Sequence k's true trajectory and LiDAR-like samples at 10 Hz, 1 s beyond
+  // the images: smooth errors (two sines per axis) plus white noise.
+  void AddTrajectory(int k) {
     BAProblem::Trajectory tt, ti;
     Eigen::Vector3d amp_p[2], amp_r[2], freq, ph;
     for (int j = 0; j < 2; ++j) {
@@ -112,7 +133,7 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
     }
     for (double t = -1.0; t <= o.duration_s + 1.0 + 1e-9; t += 0.1) {
       const Pose T = motions[k].At(t);
-      tt.times_s.push_back(sequence_t0(k) + t);
+      tt.times_s.push_back(SequenceT0(k) + t);
       tt.T_world_body.push_back(T);
       const double s1 = std::sin(freq(0) * t + ph(0)), s2 = std::sin(freq(1) * t + ph(1));
       const Eigen::Vector3d dp = amp_p[0] * s1 + amp_p[1] * s2 +
@@ -120,7 +141,7 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
       const Eigen::Vector3d dr = amp_r[0] * s2 + amp_r[1] * std::sin(freq(2) * t + ph(2)) +
                                  o.lidar_white_deg * kDeg / std::sqrt(3.0) *
                                      Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
-      ti.times_s.push_back(sequence_t0(k) + t);
+      ti.times_s.push_back(SequenceT0(k) + t);
       ti.T_world_body.push_back(Pose(T.q * ExpSO3(dr), T.t + dp));
     }
     truth.trajectories.push_back(tt);
@@ -129,7 +150,7 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
 
   // Images: nominal triggers per camera, true capture = nominal + jitter,
   // timestamp = nominal + clock offset.
-  for (int k = 0; k < o.sequences; ++k) {
+  void AddImages(int k) {
     const auto& lidar = init.trajectories[k];
     for (int c = 0; c < o.cameras; ++c) {
       const double phase = uniform(rng) / rates[c];
@@ -138,67 +159,86 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
         BAProblem::Image im;
         im.trajectory = k;
         im.sensor = c;
-        im.time_s = sequence_t0(k) + nominal + offsets[c];
+        im.time_s = SequenceT0(k) + nominal + offsets[c];
         im.name = "seq" + std::to_string(k) + "/cam" + std::to_string(c) + "/" + std::to_string(truth.images.size());
         im.T_world_camera = motions[k].At(capture) * truth.sensors[c].T_body_camera;
         truth.images.push_back(im);
         // Initial: the LiDAR trajectory interpolated at the timestamp.
-        const double tl = im.time_s - sequence_t0(k);
+        const double tl = im.time_s - SequenceT0(k);
         const size_t i0 = std::clamp<size_t>(static_cast<size_t>((tl + 1.0) / 0.1), 0, lidar.times_s.size() - 2);
         const double alpha = (im.time_s - lidar.times_s[i0]) / (lidar.times_s[i0 + 1] - lidar.times_s[i0]);
         im.T_world_camera = Interpolate(lidar.T_world_body[i0], lidar.T_world_body[i0 + 1], alpha) *
                             init.sensors[c].T_body_camera;
         init.images.push_back(im);
-        scene.capture_time_s.push_back(sequence_t0(k) + capture);
+        scene.capture_time_s.push_back(SequenceT0(k) + capture);
       }
     }
   }
 
-  // Wall points of the room around the ellipse (4 walls, z in [0, 4] m).
-  const double X = a + 6, Y = b + 6, H = 4;
-  const int nx = static_cast<int>(o.points_per_m2 * 2 * X * H), ny = static_cast<int>(o.points_per_m2 * 2 * Y * H);
-  std::vector<Eigen::Vector3d> candidates;
-  for (int side = 0; side < 2; ++side) {
-    for (int i = 0; i < nx; ++i)
-      candidates.emplace_back((2 * uniform(rng) - 1) * X, side ? Y : -Y, H * uniform(rng));
-    for (int i = 0; i < ny; ++i)
-      candidates.emplace_back(side ? X : -X, (2 * uniform(rng) - 1) * Y, H * uniform(rng));
-  }
-  // Floor and ceiling (sparser), and pillars (1 m square, full height) inside
+  // Wall points of the room around the ellipse (4 walls, z in [0, H] m),
+  // floor and ceiling (sparser), and pillars (1 m square, full height) inside
   // and outside the ellipse: depth variety that conditions the calibration.
-  const int nf = static_cast<int>(0.25 * o.points_per_m2 * 4 * X * Y);
-  for (int i = 0; i < nf; ++i)
-    candidates.emplace_back((2 * uniform(rng) - 1) * X, (2 * uniform(rng) - 1) * Y, i % 2 ? 0.0 : H);
-  for (int p = 0; p < 12; ++p) {
-    const double ang = 2 * M_PI * p / 12, rad = p % 2 ? 0.6 : 1.25;
-    const Eigen::Vector2d c(rad * a * std::cos(ang), rad * b * std::sin(ang));
-    for (int i = 0; i < static_cast<int>(o.points_per_m2 * 4 * H); ++i) {
-      const double s = 2 * uniform(rng) - 1;
-      const int face = i % 4;
-      const Eigen::Vector2d off = face == 0 ? Eigen::Vector2d(0.5, 0.5 * s) : face == 1 ? Eigen::Vector2d(-0.5, 0.5 * s)
-                                  : face == 2 ? Eigen::Vector2d(0.5 * s, 0.5) : Eigen::Vector2d(0.5 * s, -0.5);
-      candidates.emplace_back(c.x() + off.x(), c.y() + off.y(), H * uniform(rng));
+  std::vector<Eigen::Vector3d> CandidatePoints() {
+    const double X = a + 6, Y = b + 6, H = 4;
+    const int nx = static_cast<int>(o.points_per_m2 * 2 * X * H), ny = static_cast<int>(o.points_per_m2 * 2 * Y * H);
+    std::vector<Eigen::Vector3d> candidates;
+    for (int side = 0; side < 2; ++side) {
+      for (int i = 0; i < nx; ++i)
+        candidates.emplace_back((2 * uniform(rng) - 1) * X, side ? Y : -Y, H * uniform(rng));
+      for (int i = 0; i < ny; ++i)
+        candidates.emplace_back(side ? X : -X, (2 * uniform(rng) - 1) * Y, H * uniform(rng));
     }
-  }
-  for (const Eigen::Vector3d& P : candidates) {
-    std::vector<BAProblem::Observation> obs;
-    for (size_t i = 0; i < truth.images.size(); ++i) {
-      const auto& im = truth.images[i];
-      const Camera& cam = truth.sensors[im.sensor].camera;
-      const Eigen::Vector3d pc = im.T_world_camera.Inverse() * P;
-      if (pc.z() < 0.5 || pc.z() > o.max_depth_m || pc.head<2>().norm() > 1.5 * pc.z()) continue;
-      const Eigen::Vector2d xy = cam.Project(pc);
-      if (xy.x() < 0 || xy.y() < 0 || xy.x() > cam.width || xy.y() > cam.height) continue;
-      const Eigen::Vector2d noise(normal(rng), normal(rng));
-      obs.push_back({static_cast<int>(i), static_cast<int>(truth.points.size()), xy + o.pixel_noise_px * noise});
+    const int nf = static_cast<int>(0.25 * o.points_per_m2 * 4 * X * Y);
+    for (int i = 0; i < nf; ++i)
+      candidates.emplace_back((2 * uniform(rng) - 1) * X, (2 * uniform(rng) - 1) * Y, i % 2 ? 0.0 : H);
+    for (int p = 0; p < 12; ++p) {
+      const double ang = 2 * M_PI * p / 12, rad = p % 2 ? 0.6 : 1.25;
+      const Eigen::Vector2d c(rad * a * std::cos(ang), rad * b * std::sin(ang));
+      for (int i = 0; i < static_cast<int>(o.points_per_m2 * 4 * H); ++i) {
+        const double s = 2 * uniform(rng) - 1;
+        const int face = i % 4;
+        const Eigen::Vector2d off = face == 0 ? Eigen::Vector2d(0.5, 0.5 * s) : face == 1 ? Eigen::Vector2d(-0.5, 0.5 * s)
+                                    : face == 2 ? Eigen::Vector2d(0.5 * s, 0.5) : Eigen::Vector2d(0.5 * s, -0.5);
+        candidates.emplace_back(c.x() + off.x(), c.y() + off.y(), H * uniform(rng));
+      }
     }
-    if (static_cast<int>(obs.size()) < o.min_track_length) continue;
-    truth.points.push_back({P});
-    init.points.push_back({P + o.point_noise_m * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))});
-    truth.observations.insert(truth.observations.end(), obs.begin(), obs.end());
+    return candidates;
   }
-  init.observations = truth.observations;
-  return scene;
+
+  // The candidates seen by at least min_track_length images (in front,
+  // within max_depth_m and the image), with their noisy observations.
+  void AddPoints(const std::vector<Eigen::Vector3d>& candidates) {
+    for (const Eigen::Vector3d& P : candidates) {
+      std::vector<BAProblem::Observation> obs;
+      for (size_t i = 0; i < truth.images.size(); ++i) {
+        const auto& im = truth.images[i];
+        const Camera& cam = truth.sensors[im.sensor].camera;
+        const Eigen::Vector3d pc = im.T_world_camera.Inverse() * P;
+        if (pc.z() < 0.5 || pc.z() > o.max_depth_m || pc.head<2>().norm() > 1.5 * pc.z()) continue;
+        const Eigen::Vector2d xy = cam.Project(pc);
+        if (xy.x() < 0 || xy.y() < 0 || xy.x() > cam.width || xy.y() > cam.height) continue;
+        const Eigen::Vector2d noise(normal(rng), normal(rng));
+        obs.push_back({static_cast<int>(i), static_cast<int>(truth.points.size()), xy + o.pixel_noise_px * noise});
+      }
+      if (static_cast<int>(obs.size()) < o.min_track_length) continue;
+      truth.points.push_back({P});
+      init.points.push_back({P + o.point_noise_m * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))});
+      truth.observations.insert(truth.observations.end(), obs.begin(), obs.end());
+    }
+    init.observations = truth.observations;
+  }
+};
+
+}  // namespace
+
+SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
+  SceneMaker m(o);
+  m.MakeMotions();
+  m.AddCameras();
+  for (int k = 0; k < o.sequences; ++k) m.AddTrajectory(k);
+  for (int k = 0; k < o.sequences; ++k) m.AddImages(k);
+  m.AddPoints(m.CandidatePoints());
+  return std::move(m.scene);
 }
 
 SceneErrors CompareToTruth(const BAProblem& est, const BAProblem& truth) {
