@@ -115,7 +115,7 @@ class PersonDetectionStage : public PerItemStage<PersonDetectionOptions> {
     std::ostringstream truth;
     truth.precision(17);
     truth << true_percent << '\n';
-    WriteFileAtomic(SafeJoin(ctx.output_dir() / "truth", image + ".txt"), truth.str());
+    WriteFileAtomic(SafeJoin(ctx.output_dir() / "items", image + ".txt"), truth.str());
     WriteFileAtomic(PersonsFile(ctx.output_dir() / "persons", image), FormatPersons(persons));
   }
 
@@ -127,7 +127,7 @@ class PersonDetectionStage : public PerItemStage<PersonDetectionOptions> {
     std::vector<double> covered, count, truth;
     for (const std::string& image : dataset.CameraImages()) {
       const Persons p = ReadPersons(ctx.output_dir() / "persons", image);
-      const fs::path truth_file = SafeJoin(ctx.output_dir() / "truth", image + ".txt");
+      const fs::path truth_file = SafeJoin(ctx.output_dir() / "items", image + ".txt");
       std::istringstream in(ReadFile(truth_file));
       double t = -1;
       if (!(in >> t)) throw InputError(truth_file.string(), 1, "true_crowdedness", "malformed (rerun with --force)");
