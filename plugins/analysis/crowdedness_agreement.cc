@@ -2,7 +2,9 @@
 // (covered %, count) follows the true crowdedness of the simulator's masks,
 // over the query sets of a crowd sweep (configs/benchmark/crowd_sweep_detection.yaml):
 // per set and pooled, Pearson and Spearman correlations.
+#include <cmath>
 #include <numeric>
+#include <sstream>
 
 #include "detection.h"
 #include "evaluation.h"

@@ -5,6 +5,7 @@
 // images; with a simulator recording, the true crowdedness beside it.
 #include <opencv2/dnn.hpp>
 
+#include <cmath>
 #include <map>
 #include <numeric>
 #include <sstream>
@@ -153,11 +154,18 @@ class PersonDetectionStage : public PerItemStage<PersonDetectionOptions> {
        << (n > 0 ? std::accumulate(covered.begin(), covered.end(), 0.0) / n : 0.0)
        << " % of the image (area of the union of the boxes).\n";
     if (!truth.empty()) {
+      const auto r = [](double v) {  // NaN: one of the samples is constant (e.g. no people at all)
+        std::ostringstream s;
+        s.precision(3);
+        if (std::isnan(v)) return std::string("- (constant)");
+        s << v;
+        return s.str();
+      };
       md << "\nAgainst the true masks: mean true crowdedness "
          << std::accumulate(truth.begin(), truth.end(), 0.0) / n << " %; Pearson / Spearman of the covered % with "
-         << "the true % " << PearsonCorrelation(covered, truth) << " / " << SpearmanCorrelation(covered, truth)
-         << ", of the count with the true % " << PearsonCorrelation(count, truth) << " / "
-         << SpearmanCorrelation(count, truth) << ".\n";
+         << "the true % " << r(PearsonCorrelation(covered, truth)) << " / " << r(SpearmanCorrelation(covered, truth))
+         << ", of the count with the true % " << r(PearsonCorrelation(count, truth)) << " / "
+         << r(SpearmanCorrelation(count, truth)) << ".\n";
     }
     WriteFileAtomic(ctx.output_dir() / "detection.md", md.str());
     ctx.Info(md.str());

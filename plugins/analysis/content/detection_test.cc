@@ -205,15 +205,31 @@ TEST(PersonDetection, FindsThePeopleOfRealPhotographs) {
       {"cfg", (model / "yolo-fastest-1.1_body.cfg").string()},
       {"weights", (model / "yolo-fastest-1.1_body.weights").string()}};
   const runtime::InputArtifact images{"images", "kapture.dataset", photos};
+  // True masks of our own (as a simulator recording holds them): person.jpg's
+  // man as the box drawn by eye, nobody in kite.jpg (its people are not
+  // what this checks: the recording input's path).
+  cv::Mat man_mask(424, 640, CV_8U, cv::Scalar(0));
+  man_mask(cv::Rect(190, 100, 80, 272)).setTo(255);
+  fs::create_directories(photos / "truth/masks");
+  ASSERT_TRUE(cv::imwrite((photos / "truth/masks/person.png").string(), man_mask));
+  ASSERT_TRUE(cv::imwrite((photos / "truth/masks/kite.png").string(), cv::Mat(900, 1352, CV_8U, cv::Scalar(0))));
   // At the cfg's input size, 320x320.
-  testkit::RunStage(registry, "analysis/person_detection", params, {images}, dir / "det320");
+  testkit::RunStage(registry, "analysis/person_detection", params, {images, {"recording", "kapture.dataset", photos}},
+                    dir / "det320");
   // person.jpg (640x424): one man standing in a field between a dog and a
   // horse; by eye he spans x 190-270, y 100-372 (hat to boots).
   const Persons man = ReadPersons(dir / "det320/persons", "person.jpg");
   ASSERT_EQ(man.boxes.size(), 1u) << "one person, not the dog nor the horse";
   EXPECT_GE(BoxIou(man.boxes[0], Box(190, 100, 80, 272)), 0.75);
   EXPECT_NEAR(man.covered_percent, 100.0 * 80 * 272 / (640 * 424), 2.5);  // 8.0 % by eye
-  EXPECT_NE(locforge::testing::ReadText(dir / "det320/detection.md").find("320x320 (resized)"), std::string::npos);
+  const std::string summary = locforge::testing::ReadText(dir / "det320/detection.md");
+  EXPECT_NE(summary.find("320x320 (resized)"), std::string::npos) << summary;
+  // Two images, the crowded one found more crowded: both correlations 1.
+  EXPECT_NE(summary.find("covered % with the true % 1 / 1"), std::string::npos) << summary;
+  const auto with_truth = locforge::testing::ReadCsv(dir / "det320/persons.csv");
+  ASSERT_EQ(with_truth.size(), 3u);
+  EXPECT_NEAR(std::stod(with_truth[2][3]), 100.0 * 80 * 272 / (640 * 424), 1e-9);
+  EXPECT_EQ(with_truth[1][3], "0");
 
   // kite.jpg's people are 10-50 px of a 1352 px image: at 320 the detector
   // misses some (and takes a kite for one); at 640x640 it finds them.
