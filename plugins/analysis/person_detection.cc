@@ -58,12 +58,22 @@ struct PersonDetectionOptions {
   }
 };
 
+// The files' size and modification time: a model rewritten at the same path
+// between two runs of one process is reloaded (as learned::ThreadNet does).
+std::string Stamp(const std::string& file) {
+  std::error_code ec;
+  const auto size = fs::file_size(file, ec);
+  const auto time = fs::last_write_time(file, ec);
+  return ec ? "" : std::to_string(size) + "@" + std::to_string(time.time_since_epoch().count());
+}
+
 // cv::dnn::Net is not thread-safe: one per thread and model.
 cv::dnn::Net& ThreadDarknet(const std::string& cfg, const std::string& weights) {
   thread_local std::map<std::string, cv::dnn::Net> nets;
-  const std::string key = cfg + "\n" + weights;
+  const std::string key = cfg + "@" + Stamp(cfg) + "\n" + weights + "@" + Stamp(weights);
   auto it = nets.find(key);
   if (it != nets.end()) return it->second;
+  nets.clear();  // an older version of these files, or another model: one net per thread is enough
   cv::dnn::Net net;
   try {
     net = cv::dnn::readNetFromDarknet(cfg, weights);

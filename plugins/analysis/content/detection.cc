@@ -3,6 +3,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -33,9 +34,12 @@ struct Placement {
 Placement PlacementOf(cv::Size image, const DarknetInput& input) {
   Placement p;
   if (!input.letter_box) return p;
-  const double scale = std::min(static_cast<double>(input.width) / image.width,
-                                static_cast<double>(input.height) / image.height);
-  const int new_w = static_cast<int>(image.width * scale), new_h = static_cast<int>(image.height * scale);
+  // In integers, as Darknet's letterbox_image: the bound axis fills the input exactly.
+  int new_w = input.width, new_h = input.height;
+  if (static_cast<int64_t>(input.width) * image.height < static_cast<int64_t>(input.height) * image.width)
+    new_h = static_cast<int>(static_cast<int64_t>(image.height) * input.width / image.width);
+  else
+    new_w = static_cast<int>(static_cast<int64_t>(image.width) * input.height / image.height);
   p.size_x = static_cast<double>(new_w) / input.width;
   p.size_y = static_cast<double>(new_h) / input.height;
   p.offset_x = static_cast<double>((input.width - new_w) / 2) / input.width;
