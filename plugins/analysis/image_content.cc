@@ -1,5 +1,6 @@
 // analysis/image_content: per query image, the paper's low-frequency score and
-// its crowdedness (% of person pixels of a mask), for Tables 5 and 6
+// its crowdedness (% of person pixels of a mask, or % of the image covered by
+// person boxes of analysis/person_detection on real images), for Tables 5 and 6
 // (analysis/content_tables). Per image, so it shards like feature extraction.
 #include <opencv2/imgcodecs.hpp>
 
@@ -7,6 +8,7 @@
 #include <map>
 #include <sstream>
 
+#include "detection.h"
 #include "image_content.h"
 #include "image_read.h"
 #include "locforge/fs.h"
@@ -46,17 +48,20 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
   static StageMeta Meta() {
     StageMeta meta = {"analysis", "image_content",
                       "Per image: low-frequency score (mean |I - lowpass(I)|, Fourier domain) and crowdedness "
-                      "(% person pixels of a mask), the inputs of the paper's Tables 5 and 6",
+                      "(% person pixels of a mask, or % of the image covered by person boxes), the inputs of the paper's Tables 5 and 6",
                       {{"images", "kapture.dataset", "the query images"},
                        {"recording", "kapture.dataset",
                         "a simulator recording instead of the masks parameter: its truth/masks (image paths of the "
                         "query kapture relative to the recording, e.g. validation/...)",
                         LF_PORT_OPTIONAL},
                        {"masks", "person.masks", "estimated person masks instead (analysis/person_segmentation)",
-                        LF_PORT_OPTIONAL}},
+                        LF_PORT_OPTIONAL},
+                       {"detections", "person.detections",
+                        "person boxes instead (analysis/person_detection): crowdedness = % of the image covered by "
+                        "the union of its boxes", LF_PORT_OPTIONAL}},
                       {{"content", "report", "content.csv (image, device_id, low_frequency_score, low_frequency, "
                                              "crowdedness_percent, crowded), content.md, crowdedness_source.txt"}}};
-    meta.version = "1.2.0";  // 1.2.0: a damaged image fails its item
+    meta.version = "1.3.0";  // 1.2.0: a damaged image fails its item; 1.3.0: detections input
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -70,9 +75,12 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     std::ostringstream line;
     line.precision(17);
     line << LowFrequencyScore(gray, lf) << ' ';
-    const fs::path masks = MasksOf(ctx).folder;
+    const Masks source = MasksOf(ctx);
+    const fs::path& masks = source.folder;
     if (masks.empty()) {
       line << -1;
+    } else if (source.boxes) {
+      line << ReadPersons(masks, image).covered_percent;
     } else {
       line << CrowdednessPercent(ReadPersonMask(masks, image, gray.size(), "masks"));
     }
@@ -80,24 +88,31 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
     WriteFileAtomic(ItemFile(ctx.output_dir(), image), line.str());
   }
 
-  // The masks parameter, the recording input's truth/masks or the masks input's masks/: one of them,
-  // with what kind of masks it holds (for the reports built on this one, analysis/crowd_sweep).
+  // The masks parameter, the recording input's truth/masks, the masks input's masks/ or the
+  // detections input's persons/: one of them, with what kind of masks it holds (for the reports
+  // built on this one, analysis/crowd_sweep).
   struct Masks {
-    fs::path folder;   // empty: no crowdedness
-    std::string kind;  // "" without masks
+    fs::path folder;     // empty: no crowdedness
+    std::string kind;    // "" without masks
+    bool boxes = false;  // folder holds persons files (analysis/person_detection), not masks
   };
   Masks MasksOf(RunContext& ctx) const {
-    const int given = !options().masks.empty() + ctx.HasInput("recording") + ctx.HasInput("masks");
+    const int given =
+        !options().masks.empty() + ctx.HasInput("recording") + ctx.HasInput("masks") + ctx.HasInput("detections");
     if (given > 1)
-      throw ParamError("analysis/image_content: give one source of person masks (the masks parameter, the "
-                       "recording input or the masks input)");
-    if (ctx.HasInput("masks")) return {ctx.Input("masks") / "masks", "person masks estimated by analysis/person_segmentation"};
+      throw ParamError("analysis/image_content: give one source of crowdedness (the masks parameter, the "
+                       "recording input, the masks input or the detections input)");
+    if (ctx.HasInput("detections"))
+      return {ctx.Input("detections") / "persons",
+              "person boxes detected by analysis/person_detection (% of the image covered by their union)", true};
+    if (ctx.HasInput("masks"))
+      return {ctx.Input("masks") / "masks", "person masks estimated by analysis/person_segmentation", false};
     if (!ctx.HasInput("recording"))
-      return {options().masks, options().masks.empty() ? "" : "the person masks of a folder"};
+      return {options().masks, options().masks.empty() ? "" : "the person masks of a folder", false};
     const fs::path masks = ctx.Input("recording") / "truth" / "masks";
     if (!fs::is_directory(masks))
       throw InputError(masks.string(), 0, "recording", "no person masks (simulate with masks: true)");
-    return {masks, "the simulator's true person masks"};
+    return {masks, "the simulator's true person masks", false};
   }
 
   void Finalize(RunContext& ctx) override {
