@@ -17,6 +17,10 @@
 #include <random>
 #include <sstream>
 
+#include "alike.h"
+#include "locforge/kapture/kapture.h"
+#include "locforge/runtime/registry.h"
+#include "locforge/testkit.h"
 #include "testing.h"
 #include "xfeat.h"
 
@@ -212,6 +216,42 @@ TEST(Xfeat, AnySizeAndMaxSize) {
                 g.keypoints[2 * i + 1] < 437);
   cv::Mat tiny(20, 40, CV_8UC3, cv::Scalar(0));
   EXPECT_THROW(ExtractXfeat(tiny, o), InputError);
+}
+
+// Both stages through the plugin on a real kapture (fountain-P11 mapping,
+// six 1536x1024 photographs): kapture features of every image.
+TEST(XfeatAlikeStages, WriteKaptureFeaturesOfEveryImage) {
+  LOCFORGE_SHARED_PATH_OR_SKIP(mapping, "data/localization/strecha_fountain-P11/mapping");
+  LOCFORGE_LEARNED_MODEL_OR_SKIP(xfeat, "xfeat.onnx");
+  LOCFORGE_LEARNED_MODEL_OR_SKIP(alike, "alike-t.onnx");
+  const fs::path tmp = locforge::testing::MakeTempDir("xfeat_alike_stages");
+  runtime::Registry registry;
+  ASSERT_TRUE(registry.LoadFile(LOCFORGE_FEATURES_PLUGIN_FILE));
+  const runtime::InputArtifact images{"images", "kapture.dataset", mapping};
+  testkit::RunStage(registry, "features/xfeat", {{"model", xfeat.string()}, {"top_k", "1000"}}, {images},
+                    tmp / "xfeat");
+  testkit::RunStage(registry, "features/alike", {{"model", alike.string()}, {"max_size", "512"}}, {images},
+                    tmp / "alike");
+  const kapture::Kapture source(mapping);
+  const auto names = source.CameraImages();
+  ASSERT_EQ(names.size(), 6u);
+  for (const auto& [type, dim, folder] :
+       {std::tuple<std::string, int, std::string>{"xfeat", 64, "xfeat"}, {"alike", 64, "alike"}}) {
+    const kapture::Kapture out(tmp / folder);
+    for (const auto& name : names) {
+      const auto kp = out.ReadKeypoints(type, name);
+      const auto de = out.ReadDescriptors(type, name);
+      EXPECT_EQ(kp.dsize, 2) << type;
+      EXPECT_EQ(de.dsize, dim) << type;
+      EXPECT_EQ(kp.rows, de.rows) << type;
+      EXPECT_GT(kp.rows, 300) << type << " " << name;
+      if (type == "xfeat") EXPECT_EQ(kp.rows, 1000) << name;
+      for (int64_t i = 0; i < kp.rows; ++i)
+        ASSERT_TRUE(kp.At(i, 0) > 0 && kp.At(i, 0) < 1536 && kp.At(i, 1) > 0 && kp.At(i, 1) < 1024)
+            << type << " " << name;
+    }
+  }
+  fs::remove_all(tmp);
 }
 
 TEST(Xfeat, OptionsAndMissingModel) {
