@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "cloud.h"
+#include "locforge/units.h"
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/registration.h"
@@ -28,7 +29,7 @@ struct LidarToLidarOptions {
   ComponentSpec registration{"registration/gicp"};
   // Start offset applied to rigs.txt (x y z in m, roll pitch yaw in deg): tests, bad CAD.
   std::vector<double> initial_offset = {0, 0, 0, 0, 0, 0};
-  double seconds_per_unit = 1e-6;
+  double seconds_per_unit = kDefaultSecondsPerUnit;
   WheelOverrides wheels;
   static void Declare(ParamSchema<LidarToLidarOptions>& s) {
     using O = LidarToLidarOptions;
@@ -44,7 +45,7 @@ struct LidarToLidarOptions {
         .Implements(LF_REGISTRATION_INTERFACE);
     s.Add("initial_offset", &O::initial_offset,
           "Offset applied to the rigs.txt extrinsic first (x y z in m, roll pitch yaw in deg)");
-    s.Add("seconds_per_unit", &O::seconds_per_unit, "Duration of one timestamp unit (s)").Range(1e-12, 1);
+    AddSecondsPerUnit(s, &O::seconds_per_unit);
     DeclareWheelOverrides(s, &O::wheels);
   }
   bool Check(std::string* why) const;

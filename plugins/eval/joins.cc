@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "locforge/units.h"
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
@@ -21,19 +22,19 @@ namespace {
 
 struct JoinsEvalOptions {
   std::string device = "rig";
-  double seconds_per_unit = 1e-6;
-  double max_diff = 0.001;        // s, association of poses
-  double wrong_translation = 0.25;  // m
-  double wrong_rotation = 1.0;      // deg
+  double seconds_per_unit = kDefaultSecondsPerUnit;
+  double max_diff_s = 0.001;  // association of poses
+  double wrong_translation_m = 0.25;
+  double wrong_rotation_deg = 1.0;
   static void Declare(ParamSchema<JoinsEvalOptions>& s) {
     using O = JoinsEvalOptions;
     s.Add("device", &O::device, "kapture device evaluated (the platform rig)");
-    s.Add("seconds_per_unit", &O::seconds_per_unit, "kapture timestamp unit (s)").Range(1e-12, 1);
-    s.Add("max_diff", &O::max_diff, "Largest timestamp difference of associated poses (s)").Min(0);
-    s.Add("wrong_translation", &O::wrong_translation,
+    AddSecondsPerUnit(s, &O::seconds_per_unit);
+    s.Add("max_diff_s", &O::max_diff_s, "Largest timestamp difference of associated poses (s)").Min(0);
+    s.Add("wrong_translation_m", &O::wrong_translation_m,
           "A joined sequence is wrong when the rigid alignment of its own poses and the first sequence's differ "
           "by more than this over its poses (m RMS) ...").Min(1e-6);
-    s.Add("wrong_rotation", &O::wrong_rotation, "... or by more than this rotation (deg)").Min(1e-6);
+    s.Add("wrong_rotation_deg", &O::wrong_rotation_deg, "... or by more than this rotation (deg)").Min(1e-6);
   }
 };
 
@@ -154,7 +155,7 @@ void JoinsEval::Run(RunContext& ctx) {
   const fs::path ref = ctx.Input("reference");
   Trajectory estimate = ReadKaptureTrajectory(ctx.Input("estimate"), o.device, o.seconds_per_unit);
   Trajectory reference = ReadKaptureTrajectory(ref, o.device, o.seconds_per_unit);
-  Associate(o.max_diff, &reference, &estimate);
+  Associate(o.max_diff_s, &reference, &estimate);
   const std::vector<SequenceSpan> spans = ReadSequences(ref / "truth" / "sequences.txt");
   const std::map<std::string, std::string> status = ReadJoinStatus(ctx.Input("estimate") / "joins.csv");
   // Split both by sequence.
@@ -210,7 +211,7 @@ void JoinsEval::Run(RunContext& ctx) {
     const Errors offset = AbsolutePoseErrors(Aligned(es, own), Aligned(es, anchor_fit));
     r.offset_t = ComputeStatistics(offset.translation).rmse;
     r.offset_r = ComputeStatistics(offset.rotation).rmse;
-    const bool off = r.offset_t > o.wrong_translation || r.offset_r > o.wrong_rotation;
+    const bool off = r.offset_t > o.wrong_translation_m || r.offset_r > o.wrong_rotation_deg;
     r.verdict = off ? "wrong" : "right";
     (off ? wrong : right) += 1;
     results.push_back(r);

@@ -3,6 +3,7 @@
 // with a Markdown/CSV/JSON report and TUM/KITTI exports.
 #include <sstream>
 
+#include "locforge/units.h"
 #include "locforge/plugin.h"
 #include "metrics.h"
 
@@ -12,9 +13,9 @@ struct TrajectoryEvalOptions {
   std::string reference;              // kapture folder, TUM or KITTI file
   std::string reference_format = "auto";
   std::string device = "rig";         // kapture device evaluated
-  double seconds_per_unit = 1e-6;     // kapture timestamp unit
+  double seconds_per_unit = kDefaultSecondsPerUnit;
   std::string alignment = "none";
-  double max_diff = 0.01;             // s, timestamp association
+  double max_diff_s = 0.01;  // timestamp association
   double rpe_delta = 1;
   std::string rpe_unit = "meters";
   bool rpe_all_pairs = false;
@@ -24,10 +25,10 @@ struct TrajectoryEvalOptions {
           "Reference trajectory: kapture folder, TUM or KITTI file (or wire the reference input)").Path();
     s.Add("reference_format", &O::reference_format, "Format of the reference").Choices({"auto", "kapture", "tum", "kitti"});
     s.Add("device", &O::device, "kapture device evaluated (estimate and kapture reference)");
-    s.Add("seconds_per_unit", &O::seconds_per_unit, "kapture timestamp unit (s)").Range(1e-12, 1);
+    AddSecondsPerUnit(s, &O::seconds_per_unit);
     s.Add("alignment", &O::alignment, "Alignment of the estimate: none, first pose, Umeyama SE(3) or Sim(3)")
         .Choices({"none", "first", "se3", "sim3"});
-    s.Add("max_diff", &O::max_diff, "Largest timestamp difference of associated poses (s)").Min(0);
+    s.Add("max_diff_s", &O::max_diff_s, "Largest timestamp difference of associated poses (s)").Min(0);
     s.Add("rpe_delta", &O::rpe_delta, "RPE step (frames or metres)").Min(1e-9);
     s.Add("rpe_unit", &O::rpe_unit, "Unit of rpe_delta").Choices({"frames", "meters"});
     s.Add("rpe_all_pairs", &O::rpe_all_pairs, "RPE over all pairs instead of consecutive ones");
@@ -65,7 +66,7 @@ void TrajectoryEval::Run(RunContext& ctx) {
                          : format == "kitti" ? ReadKitti(ref_path)
                                              : ReadTum(ref_path);
   const size_t estimate_poses = estimate.size();
-  Associate(o.max_diff, &reference, &estimate);
+  Associate(o.max_diff_s, &reference, &estimate);
   if (reference.size() < 2) throw Error("eval/trajectory: fewer than 2 associated poses");
   const Similarity s = Align(ParseAlignment(o.alignment), reference, &estimate);
   const Errors ape = AbsolutePoseErrors(reference, estimate);

@@ -2,6 +2,7 @@
 // spline_ba/outer_loop.h, over the spline bundle adjuster of spline_ba/ba/.
 // Its parameters are the loop's options and, in place, the bundle
 // adjuster's (SplineBAOptions: one declaration, one default each).
+#include "locforge/units.h"
 #include "locforge/plugin.h"
 #include "outer_loop.h"
 
@@ -51,7 +52,7 @@ void OuterLoopOptions::Declare(ParamSchema<OuterLoopOptions>& s) {
   s.Add("pose_tolerance_m", &O::pose_tolerance_m, "convergence: RMS camera-centre change of a round (m)").Min(0);
   s.Add("rotation_tolerance_deg", &O::rotation_tolerance_deg, "convergence: RMS camera rotation change of a round (deg)").Min(0);
   s.Add("reproj_tolerance_px", &O::reproj_tolerance_px, "convergence: change of the mean reprojection error (px)").Min(0);
-  s.Add("seconds_per_unit", &O::seconds_per_unit, "timestamp unit (s)").Range(1e-12, 1e6);
+  AddSecondsPerUnit(s, &O::seconds_per_unit);
   s.Add("sequence_gap_s", &O::sequence_gap_s, "a gap this long between rig poses starts a new trajectory (s)").Min(0);
   s.Add("rig", &O::rig, "device id of the platform poses in trajectories.txt");
   s.Add("keypoints_type", &O::keypoints_type, "keypoints type; empty = the only one");

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cloud.h"
+#include "locforge/units.h"
 #include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
 #include "lidar_params.h"
@@ -29,7 +30,7 @@ struct PreprocessOptions {
   std::vector<double> self_box_m = {-0.6, -0.45, -0.2, 0.6, 0.45, 2.3};
   double max_pair_dt_s = 0.06;   // between the merged scans of two LiDARs
   bool undistort = true;
-  double seconds_per_unit = 1e-6;
+  double seconds_per_unit = kDefaultSecondsPerUnit;
   WheelOverrides wheels;
   static void Declare(ParamSchema<PreprocessOptions>& s) {
     using O = PreprocessOptions;
@@ -44,8 +45,7 @@ struct PreprocessOptions {
     s.Add("max_pair_dt_s", &O::max_pair_dt_s, "Largest time between the scans of two LiDARs merged into one (s)")
         .Range(0, 10);
     s.Add("undistort", &O::undistort, "Motion-compensate every point (paper eq. 1)");
-    s.Add("seconds_per_unit", &O::seconds_per_unit, "Duration of one timestamp unit (1e-6: microseconds)")
-        .Range(1e-12, 1);
+    AddSecondsPerUnit(s, &O::seconds_per_unit);
     DeclareWheelOverrides(s, &O::wheels);
   }
   bool Check(std::string* why) const;

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "global_features.h"
+#include "locforge/units.h"
 #include "locforge/kapture/csv.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
@@ -20,14 +21,14 @@ namespace {
 namespace k = locforge::kapture;
 
 struct ProximityOptions {
-  double max_distance = 5.0;
+  double max_distance_m = 5.0;
   double max_angle_deg = 60.0;
   int topk = 0;
   int topk_revisit = 0;
   double revisit_min_dt_s = 10.0;
-  double seconds_per_unit = 1e-6;
+  double seconds_per_unit = kDefaultSecondsPerUnit;
   static void Declare(ParamSchema<ProximityOptions>& s) {
-    s.Add("max_distance", &ProximityOptions::max_distance, "max distance of camera centres (m)")
+    s.Add("max_distance_m", &ProximityOptions::max_distance_m, "max distance of camera centres (m)")
         .Min(0);
     s.Add("max_angle_deg", &ProximityOptions::max_angle_deg,
           "max angle between the optical axes (degrees)").Range(0, 180);
@@ -39,7 +40,7 @@ struct ProximityOptions {
         .Min(0);
     s.Add("revisit_min_dt_s", &ProximityOptions::revisit_min_dt_s,
           "time between two images of a revisit pair (s)").Min(0);
-    s.Add("seconds_per_unit", &ProximityOptions::seconds_per_unit, "timestamp unit (s)").Range(1e-12, 1e6);
+    AddSecondsPerUnit(s, &ProximityOptions::seconds_per_unit);
   }
 };
 
@@ -84,7 +85,7 @@ class PoseProximityStage : public Stage<ProximityOptions> {
     const bool query_mode = ctx.HasInput("query");
     const auto queries = query_mode ? Views(ctx.Input("query"), o.seconds_per_unit, ctx) : map;
     // Voxel hash of map centres, cell = max distance.
-    const double cell = std::max(o.max_distance, 1e-3);
+    const double cell = std::max(o.max_distance_m, 1e-3);
     auto key = [&](const Eigen::Vector3d& c) {
       return std::array<int64_t, 3>{int64_t(std::floor(c.x() / cell)), int64_t(std::floor(c.y() / cell)),
                                     int64_t(std::floor(c.z() / cell))};
@@ -107,7 +108,7 @@ class PoseProximityStage : public Stage<ProximityOptions> {
             for (int m : it->second) {
               if (map[m].image == q.image) continue;
               const double d = (map[m].centre - q.centre).norm();
-              if (d <= o.max_distance && map[m].axis.dot(q.axis) >= cos_max - 1e-12) near.emplace_back(d, m);
+              if (d <= o.max_distance_m && map[m].axis.dot(q.axis) >= cos_max - 1e-12) near.emplace_back(d, m);
             }
           }
       std::sort(near.begin(), near.end());

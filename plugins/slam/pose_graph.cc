@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "lidar_params.h"
+#include "locforge/units.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 #include "locforge/registration.h"
@@ -158,7 +159,7 @@ void PoseGraphStageOptions::Declare(ParamSchema<PoseGraphStageOptions>& s) {
   s.Add("initial_poses", &O::slam, &SlamOptions::initial_poses,
         "Manual initial-pose corrections, one 'sequence x y yaw_deg' per entry (start pose in the first "
         "sequence's frame; such a sequence is not joined by loop consensus)");
-  s.Add("seconds_per_unit", &O::slam, &SlamOptions::seconds_per_unit, "Duration of one timestamp unit (s)").Range(1e-12, 1);
+  AddSecondsPerUnit(s, &O::slam, &SlamOptions::seconds_per_unit);
   DeclareWheelOverrides(s, &O::wheels);
 }
 

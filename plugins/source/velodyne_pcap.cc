@@ -24,8 +24,8 @@ struct VelodynePcapOptions {
   double cut_azimuth_deg = -1;  // -1: where the capture starts.
   double scan_period_s = 0;     // 0: one scan per revolution.
   bool keep_partial = false;
-  double min_range = 0;         // m
-  double max_range = 200;       // m
+  double min_range_m = 0;
+  double max_range_m = 200;
   std::string sensor_id = "lidar0";
   std::string sequence = "vlp16";
 
@@ -50,13 +50,13 @@ struct VelodynePcapOptions {
         .Range(0, 10);
     s.Add("keep_partial", &O::keep_partial,
           "Keep the scans cut short by the start or end of the capture");
-    s.Add("min_range", &O::min_range, "Closer returns are dropped (m)").Range(0, 1000);
-    s.Add("max_range", &O::max_range, "Farther returns are dropped (m)").Range(0, 1000);
+    s.Add("min_range_m", &O::min_range_m, "Closer returns are dropped (m)").Range(0, 1000);
+    s.Add("max_range_m", &O::max_range_m, "Farther returns are dropped (m)").Range(0, 1000);
     s.Add("sensor_id", &O::sensor_id, "kapture sensor id of the LiDAR");
     s.Add("sequence", &O::sequence, "Folder of the scans under records_data (<sequence>/<sensor_id>/<timestamp>.pcd)");
   }
   bool Check(std::string* why) const {
-    if (min_range >= max_range) return *why = "min_range must be below max_range", false;
+    if (min_range_m >= max_range_m) return *why = "min_range_m must be below max_range_m", false;
     if (sensor_id.empty() || sensor_id.find_first_of(", /") != std::string::npos)
       return *why = "sensor_id must be non-empty, without ',', ' ' or '/'", false;
     if (sequence.empty() || sequence.find("..") != std::string::npos || sequence[0] == '/')
@@ -89,7 +89,7 @@ void VelodynePcap::Run(RunContext& ctx) {
     ctx.Warn("velodyne_pcap: calibration term not applied (HDL-64 near-range or intensity model): " + c);
   CaptureOptions capture;
   capture.port = static_cast<int>(o.port);
-  capture.decode = {ParseReturns(o.returns), o.min_range, o.max_range};
+  capture.decode = {ParseReturns(o.returns), o.min_range_m, o.max_range_m};
   capture.cut_azimuth_deg = o.cut_azimuth_deg;
   capture.scan_period_s = o.scan_period_s;
   const CaptureScans read = ScanCapture(o.pcap, calibration, capture, [&] { ctx.ThrowIfCancelled(); });

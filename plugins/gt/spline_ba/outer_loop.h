@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "locforge/units.h"
 #include "locforge/camera.h"
 #include "locforge/colmap/kapture_database.h"
 #include "locforge/colmap/model.h"
@@ -36,7 +37,7 @@ struct OuterLoopOptions {
   double pose_tolerance_m = 0.0005;       // Converged when the RMS camera-centre change of a round is below...
   double rotation_tolerance_deg = 0.005;  // ...and the RMS camera rotation change is below...
   double reproj_tolerance_px = 0.02;      // ...and the mean reprojection error changed less than this.
-  double seconds_per_unit = 1e-6;         // Timestamp unit of the dataset (s).
+  double seconds_per_unit = kDefaultSecondsPerUnit;
   double sequence_gap_s = 2.0;            // Rig poses further apart start a new trajectory.
   std::string rig = "rig";                // Device id of the platform poses in trajectories.txt.
   std::string keypoints_type;             // Empty: the only one of the features.

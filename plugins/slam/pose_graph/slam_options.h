@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "locforge/units.h"
 #include "locforge/pose.h"
 
 namespace locforge::lidar {
@@ -114,7 +115,7 @@ struct SlamOptions {
   int map_residual_stride = 4;        // ... evaluated at every n-th map point (a sample: 1/n of the cost)
   // Manual initial-pose corrections: per sequence "seq x_m y_m yaw_deg".
   std::vector<std::string> initial_poses;
-  double seconds_per_unit = 1e-6;     // duration of one timestamp unit
+  double seconds_per_unit = kDefaultSecondsPerUnit;
 
   // Combinations the parameter ranges cannot catch (malformed initial_poses).
   bool Check(std::string* why = nullptr) const;

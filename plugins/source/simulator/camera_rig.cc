@@ -3,11 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-namespace locforge::sim {
-namespace {
-constexpr double kDeg = 3.14159265358979323846 / 180;
-}  // namespace
+#include "locforge/units.h"
 
+namespace locforge::sim {
 PinholeCamera PinholeCamera::FromFov(int width, int height, double hfov_deg, double vfov_deg) {
   PinholeCamera c;
   c.width = width;

@@ -7,11 +7,9 @@
 #include <random>
 #include <utility>
 
-namespace locforge::sim {
-namespace {
-constexpr double kDeg = 3.14159265358979323846 / 180;
-}  // namespace
+#include "locforge/units.h"
 
+namespace locforge::sim {
 bool LidarOptions::Check(std::string* why) const {
   if (rings < 1) return *why = "lidar needs at least one ring", false;
   if (max_elevation_deg < min_elevation_deg) return *why = "lidar elevation range is empty", false;

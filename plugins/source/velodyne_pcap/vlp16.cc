@@ -8,12 +8,12 @@
 
 #include "locforge/error.h"
 #include "pcap.h"
+#include "locforge/units.h"
 
 namespace locforge::velodyne {
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
 constexpr int64_t kBlockPeriodNs = 2 * kSequencePeriodNs;  // two firing sequences
 
 uint16_t Le16(const unsigned char* p) { return static_cast<uint16_t>(p[0] | p[1] << 8); }

@@ -9,12 +9,12 @@
 //    (100 gives the full-resolution 2600x2000 / 2200x2900 cameras of a
 //    recording simulated at scale 0.01), extrinsics from rigs.txt;
 //  * per image, --seeds landmarks at a random pixel and a depth uniform in
-//    [--min-depth, --max-depth] m of the TRUE camera pose; each landmark is
-//    observed by every image whose true centre lies within --max-depth of it
+//    [--min-depth-m, --max-depth-m] of the TRUE camera pose; each landmark is
+//    observed by every image whose true centre lies within --max-depth-m of it
 //    (grid of camera centres), that sees it in front within the image, and
-//    whose viewing ray differs by < --max-angle deg from the seed's; tracks
+//    whose viewing ray differs by < --max-angle-deg from the seed's; tracks
 //    longer than --max-track are subsampled (the seed kept), tracks < 2 dropped;
-//  * observations: true projection + N(0, --pixel-noise^2) per coordinate;
+//  * observations: true projection + N(0, --pixel-noise-px^2) per coordinate;
 //  * start: image poses and platform trajectories of the SLAM output, each
 //    sequence rigidly aligned to the truth (the SLAM frame is its own and
 //    some joins of the large run failed), true calibration, landmarks +
@@ -23,12 +23,7 @@
 // errors against the truth after an SE(3) (Umeyama) alignment (the SLAM frame
 // is its own).
 //
-//   locforge_spline_ba_kapture_bench --recording DIR --slam DIR [--seeds N] [--max-track N]
-//       [--threads T] [--iterations I] [--intrinsics-scale S] [--solver auto|...]
-//       [--trajectory-sigma-m M] [--trajectory-sigma-deg D]  (the spline-to-LiDAR gauge prior)
-//       [--pose-sigma-m M] [--pose-sigma-deg D]  (spline pose error of each image)
-//       [--time-offsets 0|1] [--align sequence|global] [--align-trajectories 0|1]
-//       [--perturb-focal-percent P] [--perturb-rotation-deg D]  (start calibration moved, as calib/perturb)
+//   locforge_spline_ba_kapture_bench --recording DIR --slam DIR [--seeds N] ...  (--help: every option)
 // With --align global one rigid transform aligns the whole SLAM output (the
 // joins between sequences kept, as a GT run sees them); the perturbation
 // turns each camera by D deg about a random axis (its CAD centre kept) and
@@ -47,6 +42,8 @@
 #include <unordered_map>
 
 #include "locforge/kapture/io.h"
+#include "locforge/param_cli.h"
+#include "locforge/units.h"
 #include "resource_usage.h"
 #include "spline_ba.h"
 #include "synthetic.h"
@@ -63,84 +60,67 @@ using locforge::sfm::PeakRssMb;
 struct Options {
   std::string recording, slam, solver = "auto";
   int seeds = 10, max_track = 10, threads = 2, iterations = 50;
-  double intrinsics_scale = 100, min_depth = 1.5, max_depth = 12, max_angle_deg = 45, pixel_noise = 0.5;
-  double seconds_per_unit = 1e-6, sequence_gap_s = 2.0;
+  double intrinsics_scale = 100, min_depth_m = 1.5, max_depth_m = 12, max_angle_deg = 45, pixel_noise_px = 0.5;
+  double seconds_per_unit = locforge::kDefaultSecondsPerUnit, sequence_gap_s = 2.0;
   double trajectory_sigma_m = -1, trajectory_sigma_deg = -1;  // < 0: SplineBAOptions defaults
   double pose_sigma_m = -1, pose_sigma_deg = -1;
-  int time_offsets = 0;
-  int align_trajectories = 0;
+  bool time_offsets = false, align_trajectories = false;
   std::string align = "sequence";
-  double eta = -1, function_tolerance = 1e-6, point_noise = 0.05;  // eta < 0: SplineBAOptions' default
+  double eta = -1, function_tolerance = 1e-6, point_noise_m = 0.05;  // eta < 0: SplineBAOptions' default
   double perturb_focal_percent = 0, perturb_rotation_deg = 0;
+
+  static void Declare(locforge::ParamSchema<Options>& s) {
+    using O = Options;
+    s.Add("recording", &O::recording, "kapture recording with the true poses (sensors/trajectories.txt)")
+        .Required();
+    s.Add("slam", &O::slam, "slam/pose_graph output (its rig poses start the splines)").Required();
+    s.Add("seeds", &O::seeds, "landmarks seeded per image").Min(1);
+    s.Add("max_track", &O::max_track, "longest track kept").Min(2);
+    s.Add("threads", &O::threads, "Ceres threads").Min(1);
+    s.Add("iterations", &O::iterations, "solver iterations").Min(1);
+    s.Add("solver", &O::solver, "linear solver").Choices({"auto", "sparse_schur", "iterative_schur"});
+    s.Add("eta", &O::eta, "iterative_schur forcing sequence (< 0: SplineBAOptions')");
+    s.Add("function_tolerance", &O::function_tolerance, "Ceres function tolerance").Min(0);
+    s.Add("intrinsics_scale", &O::intrinsics_scale, "multiply the recording's intrinsics (1 %-scale recordings)")
+        .Min(1e-6);
+    s.Add("min_depth_m", &O::min_depth_m, "landmark depth from its seed image, at least").Min(0);
+    s.Add("max_depth_m", &O::max_depth_m, "landmark depth at most, and the farthest observing camera").Min(0);
+    s.Add("max_angle_deg", &O::max_angle_deg, "largest angle between a landmark's viewing rays").Range(0, 180);
+    s.Add("pixel_noise_px", &O::pixel_noise_px, "observation noise per coordinate").Min(0);
+    s.Add("point_noise_m", &O::point_noise_m, "start landmarks moved by N(0, sigma^2) per coordinate").Min(0);
+    locforge::AddSecondsPerUnit(s, &O::seconds_per_unit);
+    s.Add("sequence_gap_s", &O::sequence_gap_s, "a gap this long between rig poses starts a new trajectory")
+        .Min(0);
+    s.Add("trajectory_sigma_m", &O::trajectory_sigma_m, "spline-to-LiDAR prior (< 0: SplineBAOptions')");
+    s.Add("trajectory_sigma_deg", &O::trajectory_sigma_deg, "spline-to-LiDAR prior (< 0: SplineBAOptions')");
+    s.Add("pose_sigma_m", &O::pose_sigma_m, "spline pose error of each image (< 0: SplineBAOptions')");
+    s.Add("pose_sigma_deg", &O::pose_sigma_deg, "spline pose error of each image (< 0: SplineBAOptions')");
+    s.Add("time_offsets", &O::time_offsets, "estimate one clock offset per camera");
+    s.Add("align_trajectories", &O::align_trajectories,
+          "each sequence but the first may move rigidly (SplineBAOptions)");
+    s.Add("align", &O::align, "rigid alignment of the SLAM output to the truth").Choices({"sequence", "global"});
+    s.Add("perturb_focal_percent", &O::perturb_focal_percent, "start focal lengths scaled by 1 +- P % (as calib/perturb)")
+        .Min(0);
+    s.Add("perturb_rotation_deg", &O::perturb_rotation_deg, "start cameras turned by D deg (as calib/perturb)").Min(0);
+  }
 };
 
 }  // namespace
 
-const char kUsage[] =
+const char kUsageHead[] =
     "usage: locforge_spline_ba_kapture_bench --recording DIR --slam DIR [options]\n"
-    "Time, memory and accuracy of the spline BA on a recording's geometry with synthetic landmarks.\n"
-    "  --recording DIR            kapture recording with the true poses (sensors/trajectories.txt)\n"
-    "  --slam DIR                 slam/pose_graph output (its rig poses start the splines)\n"
-    "  --seeds N (10)             landmarks seeded per image\n"
-    "  --max-track N (10)         longest track kept\n"
-    "  --threads T (2)            Ceres threads\n"
-    "  --iterations I (50)        solver iterations\n"
-    "  --solver S (auto)          auto | sparse_schur | iterative_schur\n"
-    "  --eta E                    iterative_schur forcing sequence (default: SplineBAOptions', 0.001)\n"
-    "  --function-tolerance F (1e-6)\n"
-    "  --intrinsics-scale S (100) multiply the recording's intrinsics (1 %-scale recordings)\n"
-    "  --min-depth M (1.5) --max-depth M (12) --max-angle D (45)  landmark geometry\n"
-    "  --pixel-noise P (0.5)      observation noise per coordinate (px)\n"
-    "  --point-noise M (0.05)     start landmarks moved by N(0, M^2) per coordinate (m)\n"
-    "  --trajectory-sigma-m M --trajectory-sigma-deg D  spline-to-LiDAR prior (default: SplineBAOptions')\n"
-    "  --pose-sigma-m M --pose-sigma-deg D              spline pose error of each image\n"
-    "  --time-offsets 0|1 (0)     estimate one clock offset per camera\n"
-    "  --align-trajectories 0|1 (0) each sequence but the first may move rigidly (SplineBAOptions)\n"
-    "  --align sequence|global (sequence)  rigid alignment of the SLAM output to the truth\n"
-    "  --perturb-focal-percent P --perturb-rotation-deg D  start calibration moved (as calib/perturb)\n";
+    "Time, memory and accuracy of the spline BA on a recording's geometry with synthetic landmarks.\n";
 
 int main(int argc, char** argv) {
+  if (locforge::WantsHelp(argc, argv)) {
+    std::fputs(locforge::CommandLineHelp<Options>(kUsageHead).c_str(), stdout);
+    return 0;
+  }
   Options o;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--help" || a == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-  }
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string a = argv[i], v = argv[i + 1];
-    if (a == "--recording") o.recording = v;
-    else if (a == "--slam") o.slam = v;
-    else if (a == "--solver") o.solver = v;
-    else if (a == "--seeds") o.seeds = std::atoi(v.c_str());
-    else if (a == "--max-track") o.max_track = std::atoi(v.c_str());
-    else if (a == "--threads") o.threads = std::atoi(v.c_str());
-    else if (a == "--iterations") o.iterations = std::atoi(v.c_str());
-    else if (a == "--intrinsics-scale") o.intrinsics_scale = std::atof(v.c_str());
-    else if (a == "--min-depth") o.min_depth = std::atof(v.c_str());
-    else if (a == "--max-depth") o.max_depth = std::atof(v.c_str());
-    else if (a == "--max-angle") o.max_angle_deg = std::atof(v.c_str());
-    else if (a == "--pixel-noise") o.pixel_noise = std::atof(v.c_str());
-    else if (a == "--trajectory-sigma-m") o.trajectory_sigma_m = std::atof(v.c_str());
-    else if (a == "--trajectory-sigma-deg") o.trajectory_sigma_deg = std::atof(v.c_str());
-    else if (a == "--pose-sigma-m") o.pose_sigma_m = std::atof(v.c_str());
-    else if (a == "--pose-sigma-deg") o.pose_sigma_deg = std::atof(v.c_str());
-    else if (a == "--time-offsets") o.time_offsets = std::atoi(v.c_str());
-    else if (a == "--align-trajectories") o.align_trajectories = std::atoi(v.c_str());
-    else if (a == "--align") o.align = v;
-    else if (a == "--eta") o.eta = std::atof(v.c_str());
-    else if (a == "--point-noise") o.point_noise = std::atof(v.c_str());
-    else if (a == "--function-tolerance") o.function_tolerance = std::atof(v.c_str());
-    else if (a == "--perturb-focal-percent") o.perturb_focal_percent = std::atof(v.c_str());
-    else if (a == "--perturb-rotation-deg") o.perturb_rotation_deg = std::atof(v.c_str());
-    else {
-      std::fprintf(stderr, "unknown option %s\n", a.c_str());
-      return 2;
-    }
-  }
-  if (o.recording.empty() || o.slam.empty()) {
-    std::fputs(kUsage, stderr);
+  try {
+    o = locforge::ParseCommandLine<Options>(argc, argv);
+  } catch (const locforge::Error& e) {
+    std::fprintf(stderr, "%s\n%s", e.what(), locforge::CommandLineHelp<Options>(kUsageHead).c_str());
     return 2;
   }
   const auto t_start = std::chrono::steady_clock::now();
@@ -202,20 +182,20 @@ int main(int argc, char** argv) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> uni(0, 1);
   std::normal_distribution<double> normal(0, 1);
-  const double cell = o.max_depth;
+  const double cell = o.max_depth_m;
   auto cell_of = [&](const Eigen::Vector3d& c) {
     return std::tuple<int, int, int>(std::floor(c.x() / cell), std::floor(c.y() / cell), std::floor(c.z() / cell));
   };
   std::map<std::tuple<int, int, int>, std::vector<int>> grid;
   for (size_t i = 0; i < truth.images.size(); ++i) grid[cell_of(truth.images[i].T_world_camera.t)].push_back(static_cast<int>(i));
-  const double cos_max = std::cos(o.max_angle_deg * M_PI / 180.0);
+  const double cos_max = std::cos(o.max_angle_deg * locforge::kDeg);
   for (size_t i = 0; i < truth.images.size(); ++i) {
     const Pose& Twc = truth.images[i].T_world_camera;
     const locforge::Camera& cam = truth.sensors[truth.images[i].sensor].camera;
     for (int k = 0; k < o.seeds; ++k) {
       const Eigen::Vector2d px(uni(rng) * cam.width, uni(rng) * cam.height);
       const Eigen::Vector3d ray = cam.Unproject(px);
-      const double depth = o.min_depth + uni(rng) * (o.max_depth - o.min_depth);
+      const double depth = o.min_depth_m + uni(rng) * (o.max_depth_m - o.min_depth_m);
       const Eigen::Vector3d X = Twc * (ray / ray.z() * depth);
       const Eigen::Vector3d seed_dir = (X - Twc.t).normalized();
       std::vector<std::pair<int, Eigen::Vector2d>> track = {{static_cast<int>(i), Eigen::Vector2d()}};
@@ -228,7 +208,7 @@ int main(int argc, char** argv) {
             for (int j : it->second) {
               if (j == static_cast<int>(i)) continue;
               const Pose& T = truth.images[j].T_world_camera;
-              if ((X - T.t).norm() > o.max_depth) continue;
+              if ((X - T.t).norm() > o.max_depth_m) continue;
               if ((X - T.t).normalized().dot(seed_dir) < cos_max) continue;
               const Eigen::Vector3d pc = T.Inverse() * X;
               if (pc.z() < 0.3) continue;
@@ -246,9 +226,9 @@ int main(int argc, char** argv) {
       track[0].second = cam.Project(Twc.Inverse() * X);
       const int pid = static_cast<int>(truth.points.size());
       truth.points.push_back({X});
-      init.points.push_back({X + o.point_noise * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))});
+      init.points.push_back({X + o.point_noise_m * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))});
       for (const auto& [j, p] : track) {
-        const Eigen::Vector2d noisy = p + o.pixel_noise * Eigen::Vector2d(normal(rng), normal(rng));
+        const Eigen::Vector2d noisy = p + o.pixel_noise_px * Eigen::Vector2d(normal(rng), normal(rng));
         truth.observations.push_back({j, pid, noisy});
       }
     }
@@ -307,8 +287,8 @@ int main(int argc, char** argv) {
   if (o.trajectory_sigma_deg >= 0) options.trajectory_prior_sigma_rotation_rad = o.trajectory_sigma_deg * M_PI / 180.0;
   if (o.pose_sigma_m > 0) options.prior_sigma_translation_m = o.pose_sigma_m;
   if (o.pose_sigma_deg > 0) options.prior_sigma_rotation_rad = o.pose_sigma_deg * M_PI / 180.0;
-  options.estimate_time_offsets = o.time_offsets != 0;
-  options.align_trajectories = o.align_trajectories != 0;
+  options.estimate_time_offsets = o.time_offsets;
+  options.align_trajectories = o.align_trajectories;
   if (o.eta > 0) options.iterative_eta = o.eta;
   options.function_tolerance = o.function_tolerance;
   if (!options.Check()) {

@@ -5,11 +5,11 @@
 #include <cmath>
 #include <random>
 
+#include "locforge/units.h"
+
 namespace locforge::sfm {
 
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 Eigen::Quaterniond Rot(const Eigen::Vector3d& axis, double angle) {
   return Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis.normalized()));
