@@ -1,7 +1,7 @@
 // Seconds per image of features/xfeat and features/alike (and features/sift
 // for scale) on a real photograph at 1 and 2 OpenCV threads, wall clock and
 // process CPU time (the latter is less sensitive to other load on the machine).
-//   locforge_xfeat_alike_bench [--image JPG] [--models DIR] [--repeat N] [--only NAME]
+//   locforge_xfeat_alike_bench [--image JPG] [--models DIR] [--repeat N] [--only NAME]  (--help)
 // Default image: ../shared/data/localization/strecha_fountain-P11/mapping/
 // sensors/records_data/0000.jpg (1536x1024); models: build/models.
 #include <chrono>
@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "alike.h"
+#include "locforge/param_cli.h"
 #include "sift.h"
 #include "xfeat.h"
 
@@ -27,24 +28,37 @@ namespace {
 
 double CpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
+struct BenchOptions {
+  std::string image = std::string(LOCFORGE_SHARED_DIR_FOR_BENCH) +
+                      "/data/localization/strecha_fountain-P11/mapping/sensors/records_data/0000.jpg";
+  std::string models = LOCFORGE_LEARNED_MODEL_DIR_FOR_BENCH;
+  int repeat = 3;
+  std::string only;
+  static void Declare(locforge::ParamSchema<BenchOptions>& s) {
+    s.Add("image", &BenchOptions::image, "Photograph to time (default: fountain-P11 0000.jpg, 1536x1024)");
+    s.Add("models", &BenchOptions::models, "Folder of xfeat.onnx and alike-{t,s,n,l}.onnx (build/models)");
+    s.Add("repeat", &BenchOptions::repeat, "Runs per thread count, after one warm-up").Min(1);
+    s.Add("only", &BenchOptions::only, "Only the extractors whose name contains this (xfeat, alike-n, sift)");
+  }
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string image = std::string(LOCFORGE_SHARED_DIR_FOR_BENCH) +
-                      "/data/localization/strecha_fountain-P11/mapping/sensors/records_data/0000.jpg";
-  std::string models = LOCFORGE_LEARNED_MODEL_DIR_FOR_BENCH, only;
-  int repeat = 3;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string a = argv[i];
-    if (a == "--image") image = argv[i + 1];
-    else if (a == "--models") models = argv[i + 1];
-    else if (a == "--repeat") repeat = std::stoi(argv[i + 1]);
-    else if (a == "--only") only = argv[i + 1];
-    else {
-      std::cerr << "usage: locforge_xfeat_alike_bench [--image JPG] [--models DIR] [--repeat N] [--only NAME]\n";
-      return 2;
-    }
+  if (locforge::WantsHelp(argc, argv)) {
+    std::cout << locforge::CommandLineHelp<BenchOptions>(
+        "locforge_xfeat_alike_bench: seconds per image of XFeat, ALIKE and SIFT at 1 and 2 threads\n");
+    return 0;
   }
+  BenchOptions b;
+  try {
+    b = locforge::ParseCommandLine<BenchOptions>(argc, argv);
+  } catch (const std::exception& e) {
+    std::cerr << e.what() << "\n";
+    return 2;
+  }
+  const std::string image = b.image, models = b.models, only = b.only;
+  const int repeat = b.repeat;
   const cv::Mat bgr = cv::imread(image, cv::IMREAD_COLOR);
   if (bgr.empty()) {
     std::cerr << image << ": cannot read\n";
