@@ -164,6 +164,6 @@ class ContentTablesStage : public Stage<ContentTablesOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddContentTables, ContentTablesStage)
+LOCFORGE_REGISTER_STAGE(ContentTablesStage)
 
 }  // namespace locforge::analysis

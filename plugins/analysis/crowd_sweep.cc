@@ -110,6 +110,6 @@ class CrowdSweepStage : public Stage<CrowdSweepOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddCrowdSweep, CrowdSweepStage)
+LOCFORGE_REGISTER_STAGE(CrowdSweepStage)
 
 }  // namespace locforge::analysis

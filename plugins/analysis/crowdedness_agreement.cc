@@ -120,6 +120,6 @@ class CrowdednessAgreementStage : public Stage<CrowdednessAgreementOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddCrowdednessAgreement, CrowdednessAgreementStage)
+LOCFORGE_REGISTER_STAGE(CrowdednessAgreementStage)
 
 }  // namespace locforge::analysis

@@ -167,6 +167,6 @@ class ImageContentStage : public PerItemStage<ImageContentOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddImageContent, ImageContentStage)
+LOCFORGE_REGISTER_STAGE(ImageContentStage)
 
 }  // namespace locforge::analysis

@@ -201,6 +201,6 @@ class PersonDetectionStage : public PerItemStage<PersonDetectionOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddPersonDetection, PersonDetectionStage)
+LOCFORGE_REGISTER_STAGE(PersonDetectionStage)
 
 }  // namespace locforge::analysis

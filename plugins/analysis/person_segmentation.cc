@@ -118,6 +118,6 @@ class PersonSegmentationStage : public PerItemStage<PersonSegmentationOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddPersonSegmentation, PersonSegmentationStage)
+LOCFORGE_REGISTER_STAGE(PersonSegmentationStage)
 
 }  // namespace locforge::analysis

@@ -198,6 +198,6 @@ void LidarToLidar::Run(RunContext& ctx) {
                   CalibJson(ref_id, other_id, ref_scans.size(), T_platform_other, T_platform_initial, r));
 }
 
-LOCFORGE_EXPORT_STAGE(AddLidarToLidar, LidarToLidar)
+LOCFORGE_REGISTER_STAGE(LidarToLidar)
 
 }  // namespace locforge::lidar

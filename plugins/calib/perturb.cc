@@ -121,6 +121,6 @@ void PerturbStage::Run(RunContext& ctx) {
            FormatDouble(o.focal_percent / 100) + "), rotation " + FormatDouble(o.rotation_deg) + " deg");
 }
 
-LOCFORGE_EXPORT_STAGE(AddPerturb, PerturbStage)
+LOCFORGE_REGISTER_STAGE(PerturbStage)
 
 }  // namespace locforge::sfm_gt

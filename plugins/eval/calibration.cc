@@ -289,6 +289,6 @@ void CalibrationEvalStage::Run(RunContext& ctx) {
   ctx.Info("\n" + table.Markdown());
 }
 
-LOCFORGE_EXPORT_STAGE(AddCalibrationEval, CalibrationEvalStage)
+LOCFORGE_REGISTER_STAGE(CalibrationEvalStage)
 
 }  // namespace locforge::sfm_gt

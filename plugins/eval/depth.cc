@@ -184,6 +184,6 @@ class DepthEvalStage : public Stage<DepthEvalOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddDepthEval, DepthEvalStage)
+LOCFORGE_REGISTER_STAGE(DepthEvalStage)
 
 }  // namespace locforge::eval

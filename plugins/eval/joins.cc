@@ -335,6 +335,6 @@ void JoinsEval::Run(RunContext& ctx) {
   ctx.Info(line.str());
 }
 
-LOCFORGE_EXPORT_STAGE(AddJoinsEval, JoinsEval)
+LOCFORGE_REGISTER_STAGE(JoinsEval)
 
 }  // namespace locforge::eval

@@ -205,6 +205,6 @@ class LocalizationEval : public Stage<EvalOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddLocalizationEval, LocalizationEval)
+LOCFORGE_REGISTER_STAGE(LocalizationEval)
 
 }  // namespace locforge::evaluation

@@ -104,6 +104,6 @@ class CombinedTable : public Stage<TableOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddTable, CombinedTable)
+LOCFORGE_REGISTER_STAGE(CombinedTable)
 
 }  // namespace locforge::evaluation

@@ -109,6 +109,6 @@ void TrajectoryEval::Run(RunContext& ctx) {
            FormatDouble(rows[1].second.rmse) + " deg over " + std::to_string(estimate.size()) + " poses");
 }
 
-LOCFORGE_EXPORT_STAGE(AddTrajectoryEval, TrajectoryEval)
+LOCFORGE_REGISTER_STAGE(TrajectoryEval)
 
 }  // namespace locforge::eval

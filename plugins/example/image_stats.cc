@@ -2,15 +2,53 @@
 // a killed run resumes cleanly), then a CSV summary sorted by image path.
 #include <cmath>
 #include <cstdlib>
+#include <map>
+#include <mutex>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "image_read.h"
 #include "locforge/fs.h"
-#include "example_stages.h"
+#include "kapture_text.h"
+#include "locforge/plugin.h"
 
 namespace locforge::examples {
+
+struct ImageStatsOptions {
+  int bins = 16;  // Histogram bins over the full intensity range.
+  static void Declare(ParamSchema<ImageStatsOptions>& s) {
+    s.Add("bins", &ImageStatsOptions::bins, "Histogram bins over the intensity range")
+        .Range(1, 256);
+  }
+};
+
+class ImageStats : public PerItemStage<ImageStatsOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta = {"example", "image_stats",
+            "Per-image intensity mean, std, min, max and histogram, plus a CSV summary",
+            {{"images", "kapture.dataset", "Dataset whose camera images are measured"}},
+            {{"stats", "report", "stats/<image>.json per image and stats.csv"}}};
+    meta.version = "1.0.0";
+    return meta;
+  }
+  using PerItemStage::PerItemStage;
+  std::vector<std::string> ListItems(RunContext& ctx) override;
+  void ProcessItem(RunContext& ctx, const std::string& item) override;
+  void Finalize(RunContext& ctx) override;
+
+ private:
+  // Records of the input dataset by image path, read once per instance.
+  const ImageRecord& Record(RunContext& ctx, const std::string& image);
+  void LoadRecords(RunContext& ctx);
+
+  std::mutex mutex_;
+  bool loaded_ = false;
+  std::map<std::string, ImageRecord> records_;
+};
 
 namespace {
 
@@ -157,5 +195,7 @@ void ImageStats::Finalize(RunContext& ctx) {
   }
   WriteFileAtomic(ctx.output_dir() / "stats.csv", csv.str());
 }
+
+LOCFORGE_REGISTER_STAGE(ImageStats)
 
 }  // namespace locforge::examples

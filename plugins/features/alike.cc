@@ -50,6 +50,6 @@ class AlikeStage : public PerImageStage<AlikeOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddAlike, AlikeStage)
+LOCFORGE_REGISTER_STAGE(AlikeStage)
 
 }  // namespace locforge::learned

@@ -70,6 +70,6 @@ class D2netStage : public PerImageStage<D2netOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddD2net, D2netStage)
+LOCFORGE_REGISTER_STAGE(D2netStage)
 
 }  // namespace locforge::learned

@@ -87,6 +87,6 @@ class ImportStage : public Stage<ImportOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddImport, ImportStage)
+LOCFORGE_REGISTER_STAGE(ImportStage)
 
 }  // namespace locforge::sift

@@ -53,6 +53,6 @@ class R2d2Stage : public PerImageStage<R2d2Options> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddR2d2, R2d2Stage)
+LOCFORGE_REGISTER_STAGE(R2d2Stage)
 
 }  // namespace locforge::learned

@@ -59,6 +59,6 @@ class SiftStage : public PerItemStage<SiftOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddSift, SiftStage)
+LOCFORGE_REGISTER_STAGE(SiftStage)
 
 }  // namespace locforge::sift

@@ -50,6 +50,6 @@ class XfeatStage : public PerImageStage<XfeatOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddXfeat, XfeatStage)
+LOCFORGE_REGISTER_STAGE(XfeatStage)
 
 }  // namespace locforge::learned

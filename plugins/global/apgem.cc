@@ -3,6 +3,6 @@
 
 namespace locforge::learned {
 
-LOCFORGE_EXPORT_STAGE(AddApGem, GlobalStage<GlobalModel::kApGem>)
+LOCFORGE_REGISTER_STAGE(GlobalStage<GlobalModel::kApGem>)
 
 }  // namespace locforge::learned

@@ -3,6 +3,6 @@
 
 namespace locforge::learned {
 
-LOCFORGE_EXPORT_STAGE(AddDelg, GlobalStage<GlobalModel::kDelg>)
+LOCFORGE_REGISTER_STAGE(GlobalStage<GlobalModel::kDelg>)
 
 }  // namespace locforge::learned

@@ -84,6 +84,6 @@ class DenseVladStage : public PerItemStage<DenseVladOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddDenseVlad, DenseVladStage)
+LOCFORGE_REGISTER_STAGE(DenseVladStage)
 
 }  // namespace locforge::retrieval

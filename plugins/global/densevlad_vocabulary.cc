@@ -130,6 +130,6 @@ class VocabularyStage : public Stage<VocabularyOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddDenseVladVocabulary, VocabularyStage)
+LOCFORGE_REGISTER_STAGE(VocabularyStage)
 
 }  // namespace locforge::retrieval

@@ -75,6 +75,6 @@ class GlobalImportStage : public Stage<GlobalImportOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddGlobalImport, GlobalImportStage)
+LOCFORGE_REGISTER_STAGE(GlobalImportStage)
 
 }  // namespace locforge::retrieval

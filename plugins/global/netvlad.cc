@@ -3,6 +3,6 @@
 
 namespace locforge::learned {
 
-LOCFORGE_EXPORT_STAGE(AddNetVlad, GlobalStage<GlobalModel::kNetVlad>)
+LOCFORGE_REGISTER_STAGE(GlobalStage<GlobalModel::kNetVlad>)
 
 }  // namespace locforge::learned

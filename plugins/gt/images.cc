@@ -68,6 +68,6 @@ void ImagesStage::Run(RunContext& ctx) {
   ctx.Info(std::to_string(linked) + " images with poses");
 }
 
-LOCFORGE_EXPORT_STAGE(AddImages, ImagesStage)
+LOCFORGE_REGISTER_STAGE(ImagesStage)
 
 }  // namespace locforge::sfm_gt

@@ -146,6 +146,6 @@ class LidarDepthStage : public PerItemStage<LidarDepthOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddLidarDepth, LidarDepthStage)
+LOCFORGE_REGISTER_STAGE(LidarDepthStage)
 
 }  // namespace locforge::sfm_gt

@@ -88,6 +88,6 @@ class SplineBAStage : public Stage<OuterLoopOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddSplineBA, SplineBAStage)
+LOCFORGE_REGISTER_STAGE(SplineBAStage)
 
 }  // namespace locforge::sfm_gt

@@ -228,6 +228,6 @@ void Preprocess::Finalize(RunContext& ctx) {
   kapture::WriteRecords(out / kapture::layout::RecordsFile("lidar"), kapture::RecordKind::kLidar, records);
 }
 
-LOCFORGE_EXPORT_STAGE(AddPreprocess, Preprocess)
+LOCFORGE_REGISTER_STAGE(Preprocess)
 
 }  // namespace locforge::lidar

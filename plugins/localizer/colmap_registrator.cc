@@ -82,6 +82,6 @@ class ColmapRegistrator : public Stage<RegistratorOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddColmapRegistrator, ColmapRegistrator)
+LOCFORGE_REGISTER_STAGE(ColmapRegistrator)
 
 }  // namespace locforge::colmap_stages

@@ -163,6 +163,6 @@ class EsacLocalizer : public RegressionStage<EsacOptions> {
 };
 
 }  // namespace
-LOCFORGE_EXPORT_STAGE(AddEsac, EsacLocalizer)
+LOCFORGE_REGISTER_STAGE(EsacLocalizer)
 
 }  // namespace locforge::regression

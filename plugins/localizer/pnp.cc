@@ -252,6 +252,6 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
 };
 
 }  // namespace
-LOCFORGE_EXPORT_STAGE(AddPnP, PnPLocalizer)
+LOCFORGE_REGISTER_STAGE(PnPLocalizer)
 
 }  // namespace locforge::localization

@@ -65,6 +65,6 @@ class PoseNetLocalizer : public RegressionStage<PoseNetOptions> {
 };
 
 }  // namespace
-LOCFORGE_EXPORT_STAGE(AddPoseNet, PoseNetLocalizer)
+LOCFORGE_REGISTER_STAGE(PoseNetLocalizer)
 
 }  // namespace locforge::regression

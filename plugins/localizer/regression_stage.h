@@ -2,8 +2,8 @@
 // `query` input's records_camera.txt, its result written by
 // ../localizer/pnp/query_results (trajectories, failures.txt,
 // localization_stats.csv as localizer/pnp writes them).
-#ifndef LOCFORGE_PLUGINS_REGRESSION_REGRESSION_STAGE_H_
-#define LOCFORGE_PLUGINS_REGRESSION_REGRESSION_STAGE_H_
+#ifndef LOCFORGE_PLUGINS_LOCALIZER_REGRESSION_STAGE_H_
+#define LOCFORGE_PLUGINS_LOCALIZER_REGRESSION_STAGE_H_
 
 #include <map>
 #include <memory>
@@ -73,4 +73,4 @@ class RegressionStage : public PerItemStage<Options> {
 
 }  // namespace locforge::regression
 
-#endif  // LOCFORGE_PLUGINS_REGRESSION_REGRESSION_STAGE_H_
+#endif  // LOCFORGE_PLUGINS_LOCALIZER_REGRESSION_STAGE_H_

@@ -107,6 +107,6 @@ class ColmapTriangulator : public Stage<TriangulatorOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddColmapTriangulator, ColmapTriangulator)
+LOCFORGE_REGISTER_STAGE(ColmapTriangulator)
 
 }  // namespace locforge::colmap_stages

@@ -1,9 +1,5 @@
-// The stages of kind mapper; each stage's version keys its cached results.
+// The stages of kind mapper: each registers itself in its own file (LOCFORGE_REGISTER_STAGE), listed in
+// the plugin's SOURCES; each stage's version keys its cached results.
 #include "locforge/plugin.h"
 
-namespace locforge::colmap_stages {
-LOCFORGE_DECLARE_STAGE(AddColmapTriangulator);
-}  // namespace locforge::colmap_stages
-
-LOCFORGE_PLUGIN("mapper", "1.0.0", "Maps of posed images: COLMAP point_triangulator",
-                locforge::Exported<locforge::colmap_stages::AddColmapTriangulator>)
+LOCFORGE_PLUGIN("mapper", "1.0.0", "Maps of posed images: COLMAP point_triangulator")

@@ -77,6 +77,6 @@ class MutualNnStage : public PerItemStage<MutualNnOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddMutualNn, MutualNnStage)
+LOCFORGE_REGISTER_STAGE(MutualNnStage)
 
 }  // namespace locforge::matching

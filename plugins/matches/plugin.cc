@@ -1,9 +1,5 @@
-// The stages of kind matches; each stage's version keys its cached results.
+// The stages of kind matches: each registers itself in its own file (LOCFORGE_REGISTER_STAGE), listed in
+// the plugin's SOURCES; each stage's version keys its cached results.
 #include "locforge/plugin.h"
 
-namespace locforge::matching {
-LOCFORGE_DECLARE_STAGE(AddMutualNn);
-}  // namespace locforge::matching
-
-LOCFORGE_PLUGIN("matches", "1.0.0", "Descriptor matching",
-                locforge::Exported<locforge::matching::AddMutualNn>)
+LOCFORGE_PLUGIN("matches", "1.0.0", "Descriptor matching")

@@ -55,6 +55,6 @@ class DiffDrive : public Stage<DiffDriveOptions> {
   }
 };
 
-LOCFORGE_EXPORT_STAGE(AddDiffDrive, DiffDrive)
+LOCFORGE_REGISTER_STAGE(DiffDrive)
 
 }  // namespace locforge::lidar

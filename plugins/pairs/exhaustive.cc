@@ -48,6 +48,6 @@ class ExhaustiveStage : public Stage<NoOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddExhaustive, ExhaustiveStage)
+LOCFORGE_REGISTER_STAGE(ExhaustiveStage)
 
 }  // namespace locforge::retrieval

@@ -55,6 +55,6 @@ class PairsFileStage : public Stage<PairsFileOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddPairsFile, PairsFileStage)
+LOCFORGE_REGISTER_STAGE(PairsFileStage)
 
 }  // namespace locforge::retrieval

@@ -1,15 +1,5 @@
-// The stages of kind pairs; each stage's version keys its cached results.
+// The stages of kind pairs: each registers itself in its own file (LOCFORGE_REGISTER_STAGE), listed in
+// the plugin's SOURCES; each stage's version keys its cached results.
 #include "locforge/plugin.h"
 
-namespace locforge::retrieval {
-LOCFORGE_DECLARE_STAGE(AddRetrieval);
-LOCFORGE_DECLARE_STAGE(AddExhaustive);
-LOCFORGE_DECLARE_STAGE(AddPoseProximity);
-LOCFORGE_DECLARE_STAGE(AddPairsFile);
-}  // namespace locforge::retrieval
-
-LOCFORGE_PLUGIN("pairs", "1.0.0", "Image pair selection: retrieval, exhaustive, pose proximity, pairs file",
-                locforge::Exported<locforge::retrieval::AddRetrieval>,
-                locforge::Exported<locforge::retrieval::AddExhaustive>,
-                locforge::Exported<locforge::retrieval::AddPoseProximity>,
-                locforge::Exported<locforge::retrieval::AddPairsFile>)
+LOCFORGE_PLUGIN("pairs", "1.0.0", "Image pair selection: retrieval, exhaustive, pose proximity, pairs file")

@@ -141,6 +141,6 @@ class PoseProximityStage : public Stage<ProximityOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddPoseProximity, PoseProximityStage)
+LOCFORGE_REGISTER_STAGE(PoseProximityStage)
 
 }  // namespace locforge::retrieval

@@ -149,6 +149,6 @@ class RetrievalStage : public PerItemStage<RetrievalOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddRetrieval, RetrievalStage)
+LOCFORGE_REGISTER_STAGE(RetrievalStage)
 
 }  // namespace locforge::retrieval

@@ -284,6 +284,6 @@ void VocabTreeStage::Run(RunContext& ctx) {
            std::to_string(query_records.size()) + " queries");
 }
 
-LOCFORGE_EXPORT_STAGE(AddVocabTree, VocabTreeStage)
+LOCFORGE_REGISTER_STAGE(VocabTreeStage)
 
 }  // namespace locforge::colmap_stages

@@ -1,9 +1,5 @@
-// The stages of kind pipeline; each stage's version keys its cached results.
+// The stages of kind pipeline: each registers itself in its own file (LOCFORGE_REGISTER_STAGE), listed in
+// the plugin's SOURCES; each stage's version keys its cached results.
 #include "locforge/plugin.h"
 
-namespace locforge::colmap_stages {
-LOCFORGE_DECLARE_STAGE(AddVocabTree);
-}  // namespace locforge::colmap_stages
-
-LOCFORGE_PLUGIN("pipeline", "1.0.0", "Whole baselines in one stage: COLMAP vocabulary-tree localization",
-                locforge::Exported<locforge::colmap_stages::AddVocabTree>)
+LOCFORGE_PLUGIN("pipeline", "1.0.0", "Whole baselines in one stage: COLMAP vocabulary-tree localization")

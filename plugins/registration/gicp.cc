@@ -167,6 +167,6 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
 };
 
 }  // namespace
-LOCFORGE_EXPORT_STAGE(AddGicp, Gicp)
+LOCFORGE_REGISTER_STAGE(Gicp)
 
 }  // namespace locforge::gicp

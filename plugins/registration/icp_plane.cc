@@ -72,6 +72,6 @@ class IcpPlane : public RegistrationComponent<IcpPlane, PclOptions> {
 };
 
 }  // namespace
-LOCFORGE_EXPORT_STAGE(AddIcpPlane, IcpPlane)
+LOCFORGE_REGISTER_STAGE(IcpPlane)
 
 }  // namespace locforge::pclreg

@@ -51,6 +51,6 @@ class PclGicp : public RegistrationComponent<PclGicp, PclOptions> {
 };
 
 }  // namespace
-LOCFORGE_EXPORT_STAGE(AddPclGicp, PclGicp)
+LOCFORGE_REGISTER_STAGE(PclGicp)
 
 }  // namespace locforge::pclreg

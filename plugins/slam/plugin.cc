@@ -1,8 +1,5 @@
-// The stages of kind slam; each stage's version keys its cached results.
+// The stages of kind slam: each registers itself in its own file (LOCFORGE_REGISTER_STAGE), listed in
+// the plugin's SOURCES; each stage's version keys its cached results.
 #include "locforge/plugin.h"
 
-namespace locforge::lidar {
-LOCFORGE_DECLARE_STAGE(AddPoseGraphSlam);
-}  // namespace locforge::lidar
-
-LOCFORGE_PLUGIN("slam", "0.7.0", "Pose-graph LiDAR SLAM", locforge::Exported<locforge::lidar::AddPoseGraphSlam>)
+LOCFORGE_PLUGIN("slam", "0.7.0", "Pose-graph LiDAR SLAM")

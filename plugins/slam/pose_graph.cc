@@ -283,6 +283,6 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   ctx.Info("pose_graph: " + WriteSlamOutputs(slam, o.slam, scans, dataset, ctx.output_dir(), start));
 }
 
-LOCFORGE_EXPORT_STAGE(AddPoseGraphSlam, PoseGraphSlam)
+LOCFORGE_REGISTER_STAGE(PoseGraphSlam)
 
 }  // namespace locforge::lidar

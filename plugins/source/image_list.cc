@@ -4,12 +4,45 @@
 #include <cctype>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
 
 #include "image_read.h"
 #include "locforge/fs.h"
-#include "example_stages.h"
+#include "kapture_text.h"
+#include "locforge/plugin.h"
 
 namespace locforge::examples {
+
+struct ImageListOptions {
+  std::string root;                                          // Folder imported.
+  std::vector<std::string> extensions = {"png", "jpg", "jpeg"};  // Case-insensitive.
+  double focal_px = 0;  // Placeholder focal length; 0: 1.2 * max(width, height).
+  static void Declare(ParamSchema<ImageListOptions>& s) {
+    s.Add("root", &ImageListOptions::root, "Folder of images imported (searched recursively)")
+        .Path()
+        .Required();
+    s.Add("extensions", &ImageListOptions::extensions,
+          "File extensions imported, case-insensitive");
+    s.Add("focal_px", &ImageListOptions::focal_px,
+          "Placeholder focal length in pixels; 0 uses 1.2 * max(width, height)")
+        .Min(0);
+  }
+};
+
+class ImageList : public Stage<ImageListOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta = {"source", "image_list",
+            "Imports a folder of images as a kapture dataset (one camera per image size)",
+            {},
+            {{"images", "kapture.dataset", "Cameras and image records of the folder"}}};
+    meta.version = "1.0.0";
+    return meta;
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
 
 namespace {
 
@@ -75,5 +108,7 @@ void ImageList::Run(RunContext& ctx) {
   ctx.Info("imported " + std::to_string(records.size()) + " images, " +
            std::to_string(cameras.size()) + " camera(s)");
 }
+
+LOCFORGE_REGISTER_STAGE(ImageList)
 
 }  // namespace locforge::examples

@@ -106,6 +106,6 @@ class KaptureFolder : public Stage<KaptureFolderOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddKaptureFolder, KaptureFolder)
+LOCFORGE_REGISTER_STAGE(KaptureFolder)
 
 }  // namespace locforge::colmap_stages

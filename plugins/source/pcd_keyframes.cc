@@ -153,6 +153,6 @@ void PcdKeyframes::Run(RunContext& ctx) {
            (poses.empty() ? std::string() : ", reference poses from " + o.poses));
 }
 
-LOCFORGE_EXPORT_STAGE(AddPcdKeyframes, PcdKeyframes)
+LOCFORGE_REGISTER_STAGE(PcdKeyframes)
 
 }  // namespace locforge::lidar

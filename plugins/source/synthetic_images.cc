@@ -2,14 +2,46 @@
 // rectangles, so images have gradients and corners (useful to feature stages)
 // and depend only on (seed, index, size).
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <string>
 
 #include "locforge/fs.h"
-#include "example_stages.h"
+#include "kapture_text.h"
+#include "locforge/plugin.h"
 
 namespace locforge::examples {
+
+struct SyntheticImagesOptions {
+  int count = 8;        // Images generated.
+  int width = 64;       // Image width in pixels.
+  int height = 48;      // Image height in pixels.
+  int64_t seed = 0;     // Same seed, same images (bit for bit).
+  bool color = false;   // Three channels instead of one.
+  static void Declare(ParamSchema<SyntheticImagesOptions>& s) {
+    s.Add("count", &SyntheticImagesOptions::count, "Number of images generated").Range(1, 1000000);
+    s.Add("width", &SyntheticImagesOptions::width, "Image width in pixels").Range(8, 16384);
+    s.Add("height", &SyntheticImagesOptions::height, "Image height in pixels").Range(8, 16384);
+    s.Add("seed", &SyntheticImagesOptions::seed, "Random seed; the same seed gives the same images");
+    s.Add("color", &SyntheticImagesOptions::color, "Three-channel colour images instead of grayscale");
+  }
+};
+
+class SyntheticImages : public Stage<SyntheticImagesOptions> {
+ public:
+  static StageMeta Meta() {
+    StageMeta meta = {"source", "synthetic_images",
+            "Generates deterministic procedural textured images as a kapture dataset",
+            {},
+            {{"images", "kapture.dataset", "One PINHOLE camera and its image records"}}};
+    meta.version = "1.0.0";
+    return meta;
+  }
+  using Stage::Stage;
+  void Run(RunContext& ctx) override;
+};
 
 namespace {
 
@@ -91,5 +123,7 @@ void SyntheticImages::Run(RunContext& ctx) {
   WriteCameraDataset(dataset, {camera}, records);
   ctx.Info("generated " + std::to_string(o.count) + " images");
 }
+
+LOCFORGE_REGISTER_STAGE(SyntheticImages)
 
 }  // namespace locforge::examples

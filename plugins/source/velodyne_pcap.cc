@@ -151,6 +151,6 @@ void VelodynePcap::Run(RunContext& ctx) {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddVelodynePcap, VelodynePcap)
+LOCFORGE_REGISTER_STAGE(VelodynePcap)
 
 }  // namespace locforge::velodyne

@@ -50,6 +50,6 @@ class KnownPoseEpipolarStage : public VerifyStage<EpipolarOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddKnownPoseEpipolar, KnownPoseEpipolarStage)
+LOCFORGE_REGISTER_STAGE(KnownPoseEpipolarStage)
 
 }  // namespace locforge::matching

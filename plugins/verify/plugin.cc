@@ -1,11 +1,5 @@
-// The stages of kind verify; each stage's version keys its cached results.
+// The stages of kind verify: each registers itself in its own file (LOCFORGE_REGISTER_STAGE), listed in
+// the plugin's SOURCES; each stage's version keys its cached results.
 #include "locforge/plugin.h"
 
-namespace locforge::matching {
-LOCFORGE_DECLARE_STAGE(AddTwoView);
-LOCFORGE_DECLARE_STAGE(AddKnownPoseEpipolar);
-}  // namespace locforge::matching
-
-LOCFORGE_PLUGIN("verify", "1.0.0", "Geometric verification of matches",
-                locforge::Exported<locforge::matching::AddTwoView>,
-                locforge::Exported<locforge::matching::AddKnownPoseEpipolar>)
+LOCFORGE_PLUGIN("verify", "1.0.0", "Geometric verification of matches")

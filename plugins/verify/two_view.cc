@@ -67,6 +67,6 @@ class TwoViewStage : public VerifyStage<TwoViewStageOptions> {
 
 }  // namespace
 
-LOCFORGE_EXPORT_STAGE(AddTwoView, TwoViewStage)
+LOCFORGE_REGISTER_STAGE(TwoViewStage)
 
 }  // namespace locforge::matching

@@ -146,6 +146,19 @@ TEST(Registry, AppendedFieldsAreReadOnlyWhenTheStructHoldsThem) {
   EXPECT_EQ(stage->params.at(0).component_interface, "");
 }
 
+TEST(Registry, StagesRegisteredInTheirFilesBelongToTheirOwnPlugin) {
+  Registry registry;
+  ASSERT_TRUE(registry.LoadFile(kTestPlugins / "liblftest_registered.so"));
+  ASSERT_TRUE(registry.LoadFile(kTestPlugins / "liblftest_registered_other.so"));
+  EXPECT_TRUE(registry.problems().empty());
+  EXPECT_TRUE(registry.duplicates().empty());
+  EXPECT_EQ(registry.StageIds(),
+            (std::vector<std::string>{"test/registered_a", "test/registered_b", "test/registered_c"}));
+  EXPECT_EQ(registry.Find("test/registered_a")->plugin->file.filename(), "liblftest_registered.so");
+  EXPECT_EQ(registry.Find("test/registered_b")->plugin->file.filename(), "liblftest_registered.so");
+  EXPECT_EQ(registry.Find("test/registered_c")->plugin->file.filename(), "liblftest_registered_other.so");
+}
+
 TEST(Registry, StageVersionsOverrideThePluginVersion) {
   Registry registry;
   ASSERT_TRUE(registry.LoadFile(kTestPlugins / "liblftest_components.so"));

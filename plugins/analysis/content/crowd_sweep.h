@@ -2,8 +2,8 @@
 // query routes re-simulated at several crowd densities): the controlled
 // experiment behind the paper's Table 6. Each set's queries are joined with
 // their content (analysis/image_content: crowdedness from person masks).
-#ifndef LOCFORGE_PLUGINS_ANALYSIS_CROWD_SWEEP_H_
-#define LOCFORGE_PLUGINS_ANALYSIS_CROWD_SWEEP_H_
+#ifndef LOCFORGE_PLUGINS_ANALYSIS_CONTENT_CROWD_SWEEP_H_
+#define LOCFORGE_PLUGINS_ANALYSIS_CONTENT_CROWD_SWEEP_H_
 
 #include <string>
 #include <vector>
@@ -43,4 +43,4 @@ plot::Figure SweepFigure(const std::vector<SweepSet>& sets, const evaluation::Th
 
 }  // namespace locforge::analysis
 
-#endif  // LOCFORGE_PLUGINS_ANALYSIS_CROWD_SWEEP_H_
+#endif  // LOCFORGE_PLUGINS_ANALYSIS_CONTENT_CROWD_SWEEP_H_

@@ -3,8 +3,8 @@
 // into boxes of the image, greedy non-maximum suppression as Darknet does it,
 // the share of the image the boxes cover (area of their union), the
 // per-image persons file, and the correlations of the crowdedness check.
-#ifndef LOCFORGE_PLUGINS_ANALYSIS_DETECTION_H_
-#define LOCFORGE_PLUGINS_ANALYSIS_DETECTION_H_
+#ifndef LOCFORGE_PLUGINS_ANALYSIS_CONTENT_DETECTION_H_
+#define LOCFORGE_PLUGINS_ANALYSIS_CONTENT_DETECTION_H_
 
 #include <opencv2/core.hpp>
 
@@ -81,4 +81,4 @@ double SpearmanCorrelation(const std::vector<double>& x, const std::vector<doubl
 
 }  // namespace locforge::analysis
 
-#endif  // LOCFORGE_PLUGINS_ANALYSIS_DETECTION_H_
+#endif  // LOCFORGE_PLUGINS_ANALYSIS_CONTENT_DETECTION_H_

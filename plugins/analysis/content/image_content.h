@@ -6,8 +6,8 @@
 //    is "low-frequency" when its score is below a threshold (paper: 20);
 //  * crowdedness: percentage of pixels on people, from a person mask; an
 //    image is "crowded" at >= 20 % (paper).
-#ifndef LOCFORGE_PLUGINS_ANALYSIS_IMAGE_CONTENT_H_
-#define LOCFORGE_PLUGINS_ANALYSIS_IMAGE_CONTENT_H_
+#ifndef LOCFORGE_PLUGINS_ANALYSIS_CONTENT_IMAGE_CONTENT_H_
+#define LOCFORGE_PLUGINS_ANALYSIS_CONTENT_IMAGE_CONTENT_H_
 
 #include <opencv2/core.hpp>
 
@@ -108,4 +108,4 @@ std::vector<evaluation::QueryError> RankedBestFirst(std::vector<evaluation::Quer
 
 }  // namespace locforge::analysis
 
-#endif  // LOCFORGE_PLUGINS_ANALYSIS_IMAGE_CONTENT_H_
+#endif  // LOCFORGE_PLUGINS_ANALYSIS_CONTENT_IMAGE_CONTENT_H_

@@ -1,8 +1,8 @@
 // Person masks from a segmentation network's output, and their agreement
 // with reference masks (the simulator's truth): what analysis/person_segmentation
 // computes per image.
-#ifndef LOCFORGE_PLUGINS_ANALYSIS_SEGMENTATION_H_
-#define LOCFORGE_PLUGINS_ANALYSIS_SEGMENTATION_H_
+#ifndef LOCFORGE_PLUGINS_ANALYSIS_CONTENT_SEGMENTATION_H_
+#define LOCFORGE_PLUGINS_ANALYSIS_CONTENT_SEGMENTATION_H_
 
 #include <opencv2/core.hpp>
 
@@ -23,4 +23,4 @@ MaskAgreement CompareMasks(const cv::Mat& estimate, const cv::Mat& reference);
 
 }  // namespace locforge::analysis
 
-#endif  // LOCFORGE_PLUGINS_ANALYSIS_SEGMENTATION_H_
+#endif  // LOCFORGE_PLUGINS_ANALYSIS_CONTENT_SEGMENTATION_H_

@@ -1,7 +1,7 @@
 // The two kapture 1.1 text files the example stages need (sensors.txt and
 // records_camera.txt), read and written directly. Kept small on purpose.
-#ifndef LOCFORGE_PLUGINS_EXAMPLES_KAPTURE_TEXT_H_
-#define LOCFORGE_PLUGINS_EXAMPLES_KAPTURE_TEXT_H_
+#ifndef LOCFORGE_PLUGINS_COMMON_EXAMPLES_KAPTURE_TEXT_H_
+#define LOCFORGE_PLUGINS_COMMON_EXAMPLES_KAPTURE_TEXT_H_
 
 #include <cstdint>
 #include <filesystem>
@@ -40,4 +40,4 @@ std::vector<ImageRecord> ReadImageRecords(const fs::path& dataset);
 
 }  // namespace locforge::examples
 
-#endif  // LOCFORGE_PLUGINS_EXAMPLES_KAPTURE_TEXT_H_
+#endif  // LOCFORGE_PLUGINS_COMMON_EXAMPLES_KAPTURE_TEXT_H_

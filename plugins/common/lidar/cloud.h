@@ -2,8 +2,8 @@
 // per-point time) read and written with the SDK (locforge/pointcloud_io.h);
 // here only what the stages add: non-finite returns dropped on read, voxel
 // downsampling, rigid transform, and the map-crispness measure.
-#ifndef LOCFORGE_PLUGINS_LIDAR_CLOUD_H_
-#define LOCFORGE_PLUGINS_LIDAR_CLOUD_H_
+#ifndef LOCFORGE_PLUGINS_COMMON_LIDAR_CLOUD_H_
+#define LOCFORGE_PLUGINS_COMMON_LIDAR_CLOUD_H_
 
 #include <Eigen/Core>
 #include <vector>
@@ -45,4 +45,4 @@ PlaneResidualStats MapPlaneResidual(const Cloud& map, int k = 10, double radius 
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_CLOUD_H_
+#endif  // LOCFORGE_PLUGINS_COMMON_LIDAR_CLOUD_H_

@@ -10,8 +10,8 @@
 // A recording with several sequences has one segment per sequence (a time gap
 // or ticks going backwards starts a new one); relative motion is only defined
 // inside a segment.
-#ifndef LOCFORGE_PLUGINS_LIDAR_WHEEL_ODOMETRY_H_
-#define LOCFORGE_PLUGINS_LIDAR_WHEEL_ODOMETRY_H_
+#ifndef LOCFORGE_PLUGINS_COMMON_LIDAR_WHEEL_ODOMETRY_H_
+#define LOCFORGE_PLUGINS_COMMON_LIDAR_WHEEL_ODOMETRY_H_
 
 #include <string>
 #include <vector>
@@ -78,4 +78,4 @@ class WheelOdometry {
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_WHEEL_ODOMETRY_H_
+#endif  // LOCFORGE_PLUGINS_COMMON_LIDAR_WHEEL_ODOMETRY_H_

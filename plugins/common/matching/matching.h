@@ -3,8 +3,8 @@
 // Descriptors are compared as L2-normalised float vectors (uint8 SIFT rows
 // are converted and normalised first), so distances are in [0, 2] whatever
 // the stored dtype, and a match's score is the cosine similarity.
-#ifndef LOCFORGE_PLUGINS_MATCHING_MATCHING_H_
-#define LOCFORGE_PLUGINS_MATCHING_MATCHING_H_
+#ifndef LOCFORGE_PLUGINS_COMMON_MATCHING_MATCHING_H_
+#define LOCFORGE_PLUGINS_COMMON_MATCHING_MATCHING_H_
 
 #include <Eigen/Core>
 #include <string>
@@ -65,4 +65,4 @@ std::vector<double> EpipolarErrorsPx(const std::vector<Eigen::Vector2d>& pixels1
 
 }  // namespace locforge::matching
 
-#endif  // LOCFORGE_PLUGINS_MATCHING_MATCHING_H_
+#endif  // LOCFORGE_PLUGINS_COMMON_MATCHING_MATCHING_H_

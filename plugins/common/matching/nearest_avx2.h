@@ -3,8 +3,8 @@
 // the others. nearest_avx2.cc is compiled for the baseline target; only its
 // functions marked target("avx2,fma") use AVX2, so nothing it shares with
 // other translation units (UpdateRow below, std templates) holds AVX2 code.
-#ifndef LOCFORGE_PLUGINS_MATCHING_NEAREST_AVX2_H_
-#define LOCFORGE_PLUGINS_MATCHING_NEAREST_AVX2_H_
+#ifndef LOCFORGE_PLUGINS_COMMON_MATCHING_NEAREST_AVX2_H_
+#define LOCFORGE_PLUGINS_COMMON_MATCHING_NEAREST_AVX2_H_
 
 #include <cstdint>
 
@@ -45,4 +45,4 @@ void ScanNearest(const float* a, int64_t n, const float* b, int64_t m, int64_t d
 
 }  // namespace locforge::matching::avx2
 
-#endif  // LOCFORGE_PLUGINS_MATCHING_NEAREST_AVX2_H_
+#endif  // LOCFORGE_PLUGINS_COMMON_MATCHING_NEAREST_AVX2_H_

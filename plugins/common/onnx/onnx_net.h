@@ -1,8 +1,8 @@
 // Shared helpers of the learned plugin: one cv::dnn::Net per thread and model
 // file (cv::dnn::Net is not thread-safe), and HxWx3 float images to 1x3xHxW
 // blobs.
-#ifndef LOCFORGE_PLUGINS_LEARNED_ONNX_NET_H_
-#define LOCFORGE_PLUGINS_LEARNED_ONNX_NET_H_
+#ifndef LOCFORGE_PLUGINS_COMMON_ONNX_ONNX_NET_H_
+#define LOCFORGE_PLUGINS_COMMON_ONNX_ONNX_NET_H_
 
 #include <chrono>
 #include <opencv2/core.hpp>
@@ -29,4 +29,4 @@ cv::Mat ReadRgb(const std::filesystem::path& dataset, const std::string& image);
 
 }  // namespace locforge::learned
 
-#endif  // LOCFORGE_PLUGINS_LEARNED_ONNX_NET_H_
+#endif  // LOCFORGE_PLUGINS_COMMON_ONNX_ONNX_NET_H_

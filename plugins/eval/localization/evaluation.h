@@ -2,8 +2,8 @@
 // centres, geodesic rotation error, recall at (position, angle) thresholds
 // with <= bounds, unlocalized queries counted as failures; tables as
 // Markdown/CSV/LaTeX and a recall curve (Figure 7) as SVG and PNG.
-#ifndef LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
-#define LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
+#ifndef LOCFORGE_PLUGINS_EVAL_LOCALIZATION_EVALUATION_H_
+#define LOCFORGE_PLUGINS_EVAL_LOCALIZATION_EVALUATION_H_
 
 #include <filesystem>
 #include <optional>
@@ -81,4 +81,4 @@ std::string Percent(double fraction);
 
 }  // namespace locforge::evaluation
 
-#endif  // LOCFORGE_PLUGINS_EVALUATION_EVALUATION_H_
+#endif  // LOCFORGE_PLUGINS_EVAL_LOCALIZATION_EVALUATION_H_

@@ -8,8 +8,8 @@
 //  - RPE: E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) over pairs (i, j) chosen on the estimate
 //    (every `delta` frames, or each time `delta` metres of path have been travelled);
 //  - statistics: rmse, mean, median, std (population), min, max, sse.
-#ifndef LOCFORGE_PLUGINS_TRAJECTORY_EVAL_METRICS_H_
-#define LOCFORGE_PLUGINS_TRAJECTORY_EVAL_METRICS_H_
+#ifndef LOCFORGE_PLUGINS_EVAL_TRAJECTORY_METRICS_H_
+#define LOCFORGE_PLUGINS_EVAL_TRAJECTORY_METRICS_H_
 
 #include <optional>
 #include <string>
@@ -75,4 +75,4 @@ Errors RelativePoseErrors(const Trajectory& reference, const Trajectory& estimat
 
 }  // namespace locforge::eval
 
-#endif  // LOCFORGE_PLUGINS_TRAJECTORY_EVAL_METRICS_H_
+#endif  // LOCFORGE_PLUGINS_EVAL_TRAJECTORY_METRICS_H_

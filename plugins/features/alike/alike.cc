@@ -106,21 +106,32 @@ int AlikeDescriptorDim(const std::string& model) {
   return RunNetwork(model, cv::Mat(4, size, CV_32F, cv::Scalar(0)), nullptr)[1].size[1];
 }
 
-AlikeFeatures ExtractAlike(const cv::Mat& input, const AlikeOptions& o) {
-  if (input.empty() || input.type() != CV_8UC3) throw Error("ExtractAlike: expected an 8-bit RGB image");
-  const int H = input.rows, W = input.cols;
+namespace {
+
+// A sub-pixel keypoint in the authors' normalised coordinates ([-1, 1]).
+struct Keypoint {
+  float x, y, score;
+};
+
+// The optional downscale (the authors' image_size_max).
+cv::Mat ResizeForNetwork(const cv::Mat& input, const AlikeOptions& o) {
   cv::Mat rgb = input;
-  if (o.max_size > 0 && std::max(H, W) > o.max_size) {  // the authors' image_size_max
-    const double ratio = static_cast<double>(o.max_size) / std::max(H, W);
+  const int longer = std::max(input.rows, input.cols);
+  if (o.max_size > 0 && longer > o.max_size) {
+    const double ratio = static_cast<double>(o.max_size) / longer;
     cv::resize(input, rgb, cv::Size(), ratio, ratio, cv::INTER_LINEAR);
   }
-  const int h = rgb.rows, w = rgb.cols;
-  if (h <= 2 * kRadius + 1 || w <= 2 * kRadius + 1)
+  if (rgb.rows <= 2 * kRadius + 1 || rgb.cols <= 2 * kRadius + 1)
     throw InputError(o.model, 0, "max_size",
-                     "a " + std::to_string(w) + "x" + std::to_string(h) + " network input leaves no pixel inside the border");
-  const int h32 = (h + 31) / 32 * 32, w32 = (w + 31) / 32 * 32;
+                     "a " + std::to_string(rgb.cols) + "x" + std::to_string(rgb.rows) +
+                         " network input leaves no pixel inside the border");
+  return rgb;
+}
 
-  // 1x3xh32xw32, RGB / 255, zero padding at the bottom and right.
+// 1x3xh32xw32, RGB / 255, zero padding at the bottom and right.
+cv::Mat MakeBlob(const cv::Mat& rgb) {
+  const int h = rgb.rows, w = rgb.cols;
+  const int h32 = (h + 31) / 32 * 32, w32 = (w + 31) / 32 * 32;
   const int size[4] = {1, 3, h32, w32};
   cv::Mat blob(4, size, CV_32F, cv::Scalar(0));
   float* b = blob.ptr<float>();
@@ -130,20 +141,19 @@ AlikeFeatures ExtractAlike(const cv::Mat& input, const AlikeOptions& o) {
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) b[c * plane32 + static_cast<size_t>(y) * w32 + x] = p[3 * x + c] / 255.0f;
   }
-  AlikeFeatures f;
-  const std::vector<cv::Mat> outputs = RunNetwork(o.model, blob, &f.network_seconds);
-  const int dim = f.dim = outputs[1].size[1];
-  // The maps cropped to the image (views with row stride w32).
-  const cv::Mat scores(h, w, CV_32F, const_cast<float*>(outputs[0].ptr<float>()), w32 * sizeof(float));
-  const float* desc = outputs[1].ptr<float>();
+  return blob;
+}
 
+// NMS peaks inside the border, as indices y * w + x: the top_k best, or those
+// over the threshold (the map's mean when none passes), at most n_limit.
+std::vector<int> SelectPeaks(const cv::Mat& scores, const AlikeOptions& o) {
+  const int h = scores.rows, w = scores.cols;
   cv::Mat nms = SimpleNms(scores);
   nms.rowRange(0, kRadius + 1).setTo(0);
   nms.colRange(0, kRadius + 1).setTo(0);
   nms.rowRange(h - kRadius, h).setTo(0);
   nms.colRange(w - kRadius, w).setTo(0);
-
-  std::vector<int> indices;  // y * w + x
+  std::vector<int> indices;
   if (o.top_k > 0) {
     std::vector<int> all(static_cast<size_t>(h) * w);
     std::iota(all.begin(), all.end(), 0);
@@ -151,54 +161,95 @@ AlikeFeatures ExtractAlike(const cv::Mat& input, const AlikeOptions& o) {
     const float* v = nms.ptr<float>();
     std::partial_sort(all.begin(), all.begin() + k, all.end(), [&](int a, int c) { return v[a] > v[c]; });
     indices.assign(all.begin(), all.begin() + k);
-  } else {
-    auto select = [&](float threshold) {
-      indices.clear();
-      for (int y = 0; y < h; ++y) {
-        const float* v = nms.ptr<float>(y);
-        for (int x = 0; x < w; ++x)
-          if (v[x] > threshold) indices.push_back(y * w + x);
-      }
-    };
-    select(static_cast<float>(o.scores_threshold));
-    if (indices.empty()) select(static_cast<float>(cv::mean(scores)[0]));
-    if (indices.size() > static_cast<size_t>(o.n_limit)) {
-      std::stable_sort(indices.begin(), indices.end(), [&](int a, int c) {
-        return scores.at<float>(a / w, a % w) > scores.at<float>(c / w, c % w);
-      });
-      indices.resize(o.n_limit);
+    return indices;
+  }
+  auto select = [&](float threshold) {
+    indices.clear();
+    for (int y = 0; y < h; ++y) {
+      const float* v = nms.ptr<float>(y);
+      for (int x = 0; x < w; ++x)
+        if (v[x] > threshold) indices.push_back(y * w + x);
     }
-  }
-
-  // Soft-argmax refinement, score and descriptor at the refined position.
-  struct Keypoint {
-    float x, y, score;
   };
-  std::vector<Keypoint> keypoints;
-  keypoints.reserve(indices.size());
-  const size_t plane = plane32;
-  for (int index : indices) {
-    const int cx = index % w, cy = index / w;
-    float patch[25], m = -1e30f;
-    for (int dy = -kRadius, k = 0; dy <= kRadius; ++dy)
-      for (int dx = -kRadius; dx <= kRadius; ++dx, ++k) {
-        const int x = cx + dx, y = cy + dy;
-        patch[k] = (x < 0 || x >= w || y < 0 || y >= h) ? 0.0f : scores.at<float>(y, x);
-        m = std::max(m, patch[k]);
-      }
-    float sum = 0, sx = 0, sy = 0;
-    for (int dy = -kRadius, k = 0; dy <= kRadius; ++dy)
-      for (int dx = -kRadius; dx <= kRadius; ++dx, ++k) {
-        const float e = std::exp((patch[k] - m) / kTemperature);
-        sum += e, sx += e * dx, sy += e * dy;
-      }
-    // The authors normalise to [-1, 1] by (w - 1, h - 1) and sample with
-    // align_corners = true, which maps back to the same pixel position.
-    const float x = static_cast<float>(cx) + sx / sum, y = static_cast<float>(cy) + sy / sum;
-    const float nx = x / static_cast<float>(w - 1) * 2 - 1, ny = y / static_cast<float>(h - 1) * 2 - 1;
-    const float px = (nx + 1) / 2 * static_cast<float>(w - 1), py = (ny + 1) / 2 * static_cast<float>(h - 1);
-    keypoints.push_back({nx, ny, Bilinear(scores.ptr<float>(), h, w, w32, px, py)});
+  select(static_cast<float>(o.scores_threshold));
+  if (indices.empty()) select(static_cast<float>(cv::mean(scores)[0]));
+  if (indices.size() > static_cast<size_t>(o.n_limit)) {
+    std::stable_sort(indices.begin(), indices.end(), [&](int a, int c) {
+      return scores.at<float>(a / w, a % w) > scores.at<float>(c / w, c % w);
+    });
+    indices.resize(o.n_limit);
   }
+  return indices;
+}
+
+// DKD's soft-argmax in the 5x5 window (zero padding), the score bilinearly
+// sampled at the refined position. `scores` is a view with row stride `stride`.
+Keypoint RefineSoftArgmax(const cv::Mat& scores, size_t stride, int index) {
+  const int h = scores.rows, w = scores.cols;
+  const int cx = index % w, cy = index / w;
+  float patch[25], m = -1e30f;
+  for (int dy = -kRadius, k = 0; dy <= kRadius; ++dy)
+    for (int dx = -kRadius; dx <= kRadius; ++dx, ++k) {
+      const int x = cx + dx, y = cy + dy;
+      patch[k] = (x < 0 || x >= w || y < 0 || y >= h) ? 0.0f : scores.at<float>(y, x);
+      m = std::max(m, patch[k]);
+    }
+  float sum = 0, sx = 0, sy = 0;
+  for (int dy = -kRadius, k = 0; dy <= kRadius; ++dy)
+    for (int dx = -kRadius; dx <= kRadius; ++dx, ++k) {
+      const float e = std::exp((patch[k] - m) / kTemperature);
+      sum += e, sx += e * dx, sy += e * dy;
+    }
+  // The authors normalise to [-1, 1] by (w - 1, h - 1) and sample with
+  // align_corners = true, which maps back to the same pixel position.
+  const float x = static_cast<float>(cx) + sx / sum, y = static_cast<float>(cy) + sy / sum;
+  const float nx = x / static_cast<float>(w - 1) * 2 - 1, ny = y / static_cast<float>(h - 1) * 2 - 1;
+  const float px = (nx + 1) / 2 * static_cast<float>(w - 1), py = (ny + 1) / 2 * static_cast<float>(h - 1);
+  return {nx, ny, Bilinear(scores.ptr<float>(), h, w, stride, px, py)};
+}
+
+// The per-pixel L2-normalised descriptor map (dim planes of `plane` floats,
+// row stride `stride`) bilinearly sampled at pixel (px, py), L2-normalised again.
+void SampleDescriptor(const float* desc, int dim, size_t plane, size_t stride, int h, int w, float px, float py,
+                      float* out) {
+  const int x0 = static_cast<int>(std::floor(px)), y0 = static_cast<int>(std::floor(py));
+  const float tx = px - static_cast<float>(x0), ty = py - static_cast<float>(y0);
+  const float weights[4] = {(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty};
+  for (int t = 0; t < 4; ++t) {
+    const int x = x0 + (t & 1), y = y0 + (t >> 1);
+    if (x < 0 || x >= w || y < 0 || y >= h) continue;
+    const float* d = desc + static_cast<size_t>(y) * stride + x;
+    double norm = 0;
+    for (int c = 0; c < dim; ++c) norm += static_cast<double>(d[c * plane]) * d[c * plane];
+    const float scale = weights[t] / static_cast<float>(std::max(std::sqrt(norm), 1e-12));
+    for (int c = 0; c < dim; ++c) out[c] += d[c * plane] * scale;
+  }
+  double norm = 0;
+  for (int c = 0; c < dim; ++c) norm += static_cast<double>(out[c]) * out[c];
+  const float inv = 1.0f / static_cast<float>(std::max(std::sqrt(norm), 1e-12));
+  for (int c = 0; c < dim; ++c) out[c] *= inv;
+}
+
+}  // namespace
+
+AlikeFeatures ExtractAlike(const cv::Mat& input, const AlikeOptions& o) {
+  if (input.empty() || input.type() != CV_8UC3) throw Error("ExtractAlike: expected an 8-bit RGB image");
+  const int H = input.rows, W = input.cols;
+  const cv::Mat rgb = ResizeForNetwork(input, o);
+  const int h = rgb.rows, w = rgb.cols;
+  const cv::Mat blob = MakeBlob(rgb);
+  const int w32 = blob.size[3];
+  const size_t plane = static_cast<size_t>(blob.size[2]) * w32;
+
+  AlikeFeatures f;
+  const std::vector<cv::Mat> outputs = RunNetwork(o.model, blob, &f.network_seconds);
+  const int dim = f.dim = outputs[1].size[1];
+  // The maps cropped to the image (views with row stride w32).
+  const cv::Mat scores(h, w, CV_32F, const_cast<float*>(outputs[0].ptr<float>()), w32 * sizeof(float));
+  const float* desc = outputs[1].ptr<float>();
+
+  std::vector<Keypoint> keypoints;
+  for (int index : SelectPeaks(scores, o)) keypoints.push_back(RefineSoftArgmax(scores, w32, index));
   std::vector<size_t> order(keypoints.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(),
@@ -212,24 +263,7 @@ AlikeFeatures ExtractAlike(const cv::Mat& input, const AlikeOptions& o) {
   for (size_t i = 0; i < n; ++i) {
     const Keypoint& k = keypoints[order[i]];
     const float px = (k.x + 1) / 2 * static_cast<float>(w - 1), py = (k.y + 1) / 2 * static_cast<float>(h - 1);
-    // Bilinear over the four neighbours of the per-pixel normalised map.
-    float* out = &f.descriptors[static_cast<size_t>(dim) * i];
-    const int x0 = static_cast<int>(std::floor(px)), y0 = static_cast<int>(std::floor(py));
-    const float tx = px - static_cast<float>(x0), ty = py - static_cast<float>(y0);
-    const float weights[4] = {(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty};
-    for (int t = 0; t < 4; ++t) {
-      const int x = x0 + (t & 1), y = y0 + (t >> 1);
-      if (x < 0 || x >= w || y < 0 || y >= h) continue;
-      const float* d = desc + static_cast<size_t>(y) * w32 + x;
-      double norm = 0;
-      for (int c = 0; c < dim; ++c) norm += static_cast<double>(d[c * plane]) * d[c * plane];
-      const float scale = weights[t] / static_cast<float>(std::max(std::sqrt(norm), 1e-12));
-      for (int c = 0; c < dim; ++c) out[c] += d[c * plane] * scale;
-    }
-    double norm = 0;
-    for (int c = 0; c < dim; ++c) norm += static_cast<double>(out[c]) * out[c];
-    const float inv = 1.0f / static_cast<float>(std::max(std::sqrt(norm), 1e-12));
-    for (int c = 0; c < dim; ++c) out[c] *= inv;
+    SampleDescriptor(desc, dim, plane, w32, h, w, px, py, &f.descriptors[static_cast<size_t>(dim) * i]);
     // Back to the input image: the authors' (k + 1) / 2 * (W - 1, H - 1).
     const float rx = (k.x + 1) / 2 * static_cast<float>(W - 1), ry = (k.y + 1) / 2 * static_cast<float>(H - 1);
     f.raw_keypoints.insert(f.raw_keypoints.end(), {rx, ry});

@@ -24,8 +24,8 @@
 // Coordinates: the authors' x, y have the first pixel centre at 0 (raw); the
 // kapture output adds 0.5 (SDK convention). Keypoints are returned best score
 // first (the authors' order is raster order below n_limit).
-#ifndef LOCFORGE_PLUGINS_FEATURES_ALIKE_H_
-#define LOCFORGE_PLUGINS_FEATURES_ALIKE_H_
+#ifndef LOCFORGE_PLUGINS_FEATURES_ALIKE_ALIKE_H_
+#define LOCFORGE_PLUGINS_FEATURES_ALIKE_ALIKE_H_
 
 #include <string>
 #include <vector>
@@ -84,4 +84,4 @@ int AlikeDescriptorDim(const std::string& model);
 
 }  // namespace locforge::learned
 
-#endif  // LOCFORGE_PLUGINS_FEATURES_ALIKE_H_
+#endif  // LOCFORGE_PLUGINS_FEATURES_ALIKE_ALIKE_H_

@@ -30,8 +30,8 @@
 // Coordinates: the authors' (x, y) are pixel-index coordinates (first pixel
 // centre at 0); kapture output adds 0.5 (SDK convention, first pixel centre at
 // (0.5, 0.5)). The third keypoint value is the authors' 1 / scale.
-#ifndef LOCFORGE_PLUGINS_LEARNED_D2NET_H_
-#define LOCFORGE_PLUGINS_LEARNED_D2NET_H_
+#ifndef LOCFORGE_PLUGINS_FEATURES_D2NET_D2NET_H_
+#define LOCFORGE_PLUGINS_FEATURES_D2NET_D2NET_H_
 
 #include <string>
 #include <vector>
@@ -96,4 +96,4 @@ D2netFeatures ExtractD2net(const cv::Mat& rgb, const D2netOptions& options);
 
 }  // namespace locforge::learned
 
-#endif  // LOCFORGE_PLUGINS_LEARNED_D2NET_H_
+#endif  // LOCFORGE_PLUGINS_FEATURES_D2NET_D2NET_H_

@@ -12,8 +12,8 @@
 // is (i + 0.5) * W / w in the original image (bilinear resize with
 // align_corners = false maps pixel centres so). At scale 1 that is raw + 0.5,
 // like features/sift; at coarser scales the shift is 0.5 * W / w.
-#ifndef LOCFORGE_PLUGINS_LEARNED_R2D2_H_
-#define LOCFORGE_PLUGINS_LEARNED_R2D2_H_
+#ifndef LOCFORGE_PLUGINS_FEATURES_R2D2_R2D2_H_
+#define LOCFORGE_PLUGINS_FEATURES_R2D2_R2D2_H_
 
 #include <string>
 #include <vector>
@@ -80,4 +80,4 @@ bool OutputsFollowContract(const std::vector<cv::Mat>& outputs, int level_h, int
 
 }  // namespace locforge::learned
 
-#endif  // LOCFORGE_PLUGINS_LEARNED_R2D2_H_
+#endif  // LOCFORGE_PLUGINS_FEATURES_R2D2_R2D2_H_

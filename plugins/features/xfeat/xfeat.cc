@@ -119,12 +119,20 @@ bool XfeatOptions::Check(std::string* why) const {
   return true;
 }
 
-XfeatFeatures ExtractXfeat(const cv::Mat& rgb, const XfeatOptions& o) {
-  if (rgb.empty() || rgb.type() != CV_8UC3) throw Error("ExtractXfeat: expected an 8-bit RGB image");
+namespace {
+
+struct Candidate {
+  int x, y;
+  float score;
+};
+
+// The authors' preprocess_tensor: each side down to a multiple of 32
+// (bilinear, align_corners = false, which INTER_LINEAR matches); with
+// max_size, first the scale that brings the longer side under it (area).
+// Grey = mean of R, G, B in [0, 1] (the network's first step in the authors'
+// model; linear, so it commutes with the resize).
+cv::Mat MakeNetworkInput(const cv::Mat& rgb, const XfeatOptions& o) {
   const int H = rgb.rows, W = rgb.cols;
-  // The authors' preprocess_tensor: each side down to a multiple of 32
-  // (bilinear, align_corners = false, which INTER_LINEAR matches); with
-  // max_size, first the scale that brings the longer side under it (area).
   double s = 1.0;
   if (o.max_size > 0 && std::max(H, W) > o.max_size) s = static_cast<double>(o.max_size) / std::max(H, W);
   const int H32 = static_cast<int>(std::floor(H * s + 1e-9)) / 32 * 32;
@@ -133,9 +141,6 @@ XfeatFeatures ExtractXfeat(const cv::Mat& rgb, const XfeatOptions& o) {
     throw InputError(o.model, 0, "max_size",
                      "a " + std::to_string(W) + "x" + std::to_string(H) +
                          " image gives a network input below 32x32");
-
-  // Grey = mean of R, G, B in [0, 1] (the network's first step in the
-  // authors' model; linear, so it commutes with the resize).
   cv::Mat grey(H, W, CV_32F);
   for (int y = 0; y < H; ++y) {
     const uint8_t* p = rgb.ptr<uint8_t>(y);
@@ -148,30 +153,38 @@ XfeatFeatures ExtractXfeat(const cv::Mat& rgb, const XfeatOptions& o) {
     cv::resize(grey, resized, cv::Size(W32, H32), 0, 0, s < 1.0 ? cv::INTER_AREA : cv::INTER_LINEAR);
     grey = resized;
   }
+  return grey;
+}
 
-  cv::dnn::Net& net = ThreadNet(o.model);
+// Runs the network on the H32 x W32 grey input; outputs descriptors,
+// keypoint logits and reliability, checked against the contract.
+std::vector<cv::Mat> RunNetwork(const std::string& model, cv::Mat& grey, double* seconds) {
+  const int H32 = grey.rows, W32 = grey.cols;
+  cv::dnn::Net& net = ThreadNet(model);
   const int blob_size[4] = {1, 1, H32, W32};
   net.setInput(cv::Mat(4, blob_size, CV_32F, grey.ptr<float>()), "image");
   static const std::vector<cv::String> kOutputs = {"descriptors", "keypoints", "reliability"};
   std::vector<cv::Mat> outputs;
   const auto start = std::chrono::steady_clock::now();
   net.forward(outputs, kOutputs);
-  XfeatFeatures f;
-  f.network_seconds = SecondsSince(start);
-  f.network_width = W32;
-  f.network_height = H32;
+  *seconds = SecondsSince(start);
   const int h = H32 / 8, w = W32 / 8;
   if (!OutputsFollowContract(outputs, h, w))
-    throw InputError(o.model, 0, "model",
+    throw InputError(model, 0, "model",
                      "outputs do not follow the XFeat contract (descriptors 1x64xhxw, keypoints "
                      "1x65xhxw, reliability 1x1xhxw with h x w = " +
                          std::to_string(h) + "x" + std::to_string(w) + " for a " +
                          std::to_string(W32) + "x" + std::to_string(H32) + " input)");
-  const size_t plane = static_cast<size_t>(h) * w;
+  return outputs;
+}
 
-  // Keypoint logits -> softmax over 65 bins -> drop the dustbin -> heatmap.
-  const float* logits = outputs[1].ptr<float>();
-  std::vector<float> heat(static_cast<size_t>(H32) * W32);
+// Keypoint logits (65 x h x w) -> softmax over 65 bins -> drop the dustbin
+// -> an H32 x W32 heatmap.
+cv::Mat Heatmap(const cv::Mat& keypoint_logits, int H32, int W32) {
+  const int h = H32 / 8, w = W32 / 8;
+  const size_t plane = static_cast<size_t>(h) * w;
+  const float* logits = keypoint_logits.ptr<float>();
+  cv::Mat heat(H32, W32, CV_32F);
   for (int cy = 0; cy < h; ++cy)
     for (int cx = 0; cx < w; ++cx) {
       const size_t cell = static_cast<size_t>(cy) * w + cx;
@@ -180,32 +193,30 @@ XfeatFeatures ExtractXfeat(const cv::Mat& rgb, const XfeatOptions& o) {
       float e[65], sum = 0;
       for (int k = 0; k < 65; ++k) sum += (e[k] = std::exp(logits[k * plane + cell] - m));
       for (int i = 0; i < 8; ++i)
-        for (int j = 0; j < 8; ++j)
-          heat[static_cast<size_t>(cy * 8 + i) * W32 + cx * 8 + j] = e[i * 8 + j] / sum;
+        for (int j = 0; j < 8; ++j) heat.at<float>(cy * 8 + i, cx * 8 + j) = e[i * 8 + j] / sum;
     }
+  return heat;
+}
 
-  // 5x5 non-maximum suppression (max pool of stride 1, the window clipped at
-  // the border), above the threshold; raster order as torch's nonzero.
-  cv::Mat heat_mat(H32, W32, CV_32F, heat.data()), local_max;
-  cv::dilate(heat_mat, local_max, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5)),
-             cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(-1e30));
-  const float* reliability = outputs[2].ptr<float>();
-  struct Candidate {
-    int x, y;
-    float score;
-  };
+// 5x5 non-maximum suppression (max pool of stride 1, the window clipped at
+// the border), above the threshold; raster order as torch's nonzero; scored
+// by heat x reliability, best first, at most top_k with a positive score.
+std::vector<Candidate> SelectKeypoints(const cv::Mat& heat, const float* reliability, const XfeatOptions& o) {
+  const int H32 = heat.rows, W32 = heat.cols, h = H32 / 8, w = W32 / 8;
+  cv::Mat local_max;
+  cv::dilate(heat, local_max, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5)), cv::Point(-1, -1), 1,
+             cv::BORDER_CONSTANT, cv::Scalar(-1e30));
   std::vector<Candidate> candidates;
   const float threshold = static_cast<float>(o.detection_threshold);
   for (int y = 0; y < H32; ++y) {
-    const float* hv = heat_mat.ptr<float>(y);
+    const float* hv = heat.ptr<float>(y);
     const float* mv = local_max.ptr<float>(y);
     for (int x = 0; x < W32; ++x) {
       if (!(hv[x] > threshold) || hv[x] != mv[x]) continue;
       const float px = static_cast<float>(x), py = static_cast<float>(y);
-      float score = SampleNearest(heat.data(), H32, W32, MapCoordinate(px, W32, W32),
+      float score = SampleNearest(heat.ptr<float>(), H32, W32, MapCoordinate(px, W32, W32),
                                   MapCoordinate(py, H32, H32)) *
-                    SampleBilinear(reliability, h, w, MapCoordinate(px, W32, w),
-                                   MapCoordinate(py, H32, h));
+                    SampleBilinear(reliability, h, w, MapCoordinate(px, W32, w), MapCoordinate(py, H32, h));
       if (x == 0 && y == 0) score = -1;  // the authors' padding marker
       candidates.push_back({x, y, score});
     }
@@ -214,9 +225,26 @@ XfeatFeatures ExtractXfeat(const cv::Mat& rgb, const XfeatOptions& o) {
                    [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
   if (candidates.size() > static_cast<size_t>(o.top_k)) candidates.resize(o.top_k);
   while (!candidates.empty() && !(candidates.back().score > 0)) candidates.pop_back();
+  return candidates;
+}
+
+}  // namespace
+
+XfeatFeatures ExtractXfeat(const cv::Mat& rgb, const XfeatOptions& o) {
+  if (rgb.empty() || rgb.type() != CV_8UC3) throw Error("ExtractXfeat: expected an 8-bit RGB image");
+  const int H = rgb.rows, W = rgb.cols;
+  cv::Mat grey = MakeNetworkInput(rgb, o);
+  const int H32 = grey.rows, W32 = grey.cols, h = H32 / 8, w = W32 / 8;
+  XfeatFeatures f;
+  const std::vector<cv::Mat> outputs = RunNetwork(o.model, grey, &f.network_seconds);
+  f.network_width = W32;
+  f.network_height = H32;
+  const std::vector<Candidate> candidates =
+      SelectKeypoints(Heatmap(outputs[1], H32, W32), outputs[2].ptr<float>(), o);
 
   // Descriptors: the dense map normalised per pixel, bicubic at each keypoint,
   // normalised again.
+  const size_t plane = static_cast<size_t>(h) * w;
   cv::Mat dense = outputs[0].clone();
   float* d = dense.ptr<float>();
   for (size_t p = 0; p < plane; ++p) Normalise(d + p, kDim, plane);

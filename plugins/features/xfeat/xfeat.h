@@ -24,8 +24,8 @@
 // image times W / W32 ("raw", what the reference holds). kapture output
 // follows the SDK convention (first pixel centre at (0.5, 0.5)): the centre of
 // pixel i of the resized image, (i + 0.5) * W / W32.
-#ifndef LOCFORGE_PLUGINS_FEATURES_XFEAT_H_
-#define LOCFORGE_PLUGINS_FEATURES_XFEAT_H_
+#ifndef LOCFORGE_PLUGINS_FEATURES_XFEAT_XFEAT_H_
+#define LOCFORGE_PLUGINS_FEATURES_XFEAT_XFEAT_H_
 
 #include <string>
 #include <vector>
@@ -80,4 +80,4 @@ XfeatFeatures ExtractXfeat(const cv::Mat& rgb, const XfeatOptions& options);
 
 }  // namespace locforge::learned
 
-#endif  // LOCFORGE_PLUGINS_FEATURES_XFEAT_H_
+#endif  // LOCFORGE_PLUGINS_FEATURES_XFEAT_XFEAT_H_

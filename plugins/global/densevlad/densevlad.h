@@ -2,8 +2,8 @@
 // VLAD on a k-means vocabulary learnt on the map images, intra-normalised,
 // power-normalised (signed square root) and L2-normalised, optionally
 // PCA-whitened (learnt on the map) and L2-normalised again.
-#ifndef LOCFORGE_PLUGINS_RETRIEVAL_DENSEVLAD_H_
-#define LOCFORGE_PLUGINS_RETRIEVAL_DENSEVLAD_H_
+#ifndef LOCFORGE_PLUGINS_GLOBAL_DENSEVLAD_DENSEVLAD_H_
+#define LOCFORGE_PLUGINS_GLOBAL_DENSEVLAD_DENSEVLAD_H_
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -59,4 +59,4 @@ Eigen::VectorXf DenseVladDescriptor(const cv::Mat& gray, const Vocabulary& vocab
 
 }  // namespace locforge::retrieval
 
-#endif  // LOCFORGE_PLUGINS_RETRIEVAL_DENSEVLAD_H_
+#endif  // LOCFORGE_PLUGINS_GLOBAL_DENSEVLAD_DENSEVLAD_H_

@@ -193,7 +193,7 @@ TEST(PairsGeometry, ExhaustiveAndPoseProximityOnTheSample) {
   EXPECT_EQ(ReadPairs(tmp / "ex_m").size(), 66u);
   EXPECT_EQ(ReadPairs(tmp / "ex_q").size(), 48u);
 
-  RunStage(registry, "pairs/pose_proximity", {{"max_distance", "1.5"}, {"max_angle_deg", "70"}},
+  RunStage(registry, "pairs/pose_proximity", {{"max_distance_m", "1.5"}, {"max_angle_deg", "70"}},
            {map, query}, tmp / "prox");
   // Brute force with the same thresholds.
   k::Kapture mk(shared / "mapping"), qk(shared / "query");
@@ -255,12 +255,12 @@ TEST(PairsGeometry, PoseProximityRevisitsAcrossSequences) {
     for (const auto& p : pairs) n += p.query.substr(0, 2) != p.map.substr(0, 2);
     return n;
   };
-  RunStage(registry, "pairs/pose_proximity", {{"max_distance", "2"}, {"topk", "3"}}, {map}, tmp / "top3");
+  RunStage(registry, "pairs/pose_proximity", {{"max_distance_m", "2"}, {"topk", "3"}}, {map}, tmp / "top3");
   const auto top3 = ReadPairs(tmp / "top3");
   EXPECT_EQ(cross(top3), 0);  // the 3 closest: the other cameras of the same moment
   // Every image has the same number of neighbours kept, whatever its name: 80 images x 3, each pair once.
   EXPECT_EQ(top3.size(), 120u);
-  RunStage(registry, "pairs/pose_proximity", {{"max_distance", "2"}, {"topk", "3"}, {"topk_revisit", "2"}}, {map},
+  RunStage(registry, "pairs/pose_proximity", {{"max_distance_m", "2"}, {"topk", "3"}, {"topk_revisit", "2"}}, {map},
            tmp / "revisit");
   const auto revisit = ReadPairs(tmp / "revisit");
   // 2 revisits per image, 80 images, each cross pair found from both sides at most once.

@@ -13,8 +13,8 @@
 //      sum L2-normalised (one scale: just the L2 normalisation);
 //   4. optional PCA-whitening from a file: y = P (x - m), first pca_dims rows,
 //      then L2 again.
-#ifndef LOCFORGE_PLUGINS_LEARNED_GLOBAL_DESCRIPTOR_H_
-#define LOCFORGE_PLUGINS_LEARNED_GLOBAL_DESCRIPTOR_H_
+#ifndef LOCFORGE_PLUGINS_GLOBAL_LEARNED_GLOBAL_DESCRIPTOR_H_
+#define LOCFORGE_PLUGINS_GLOBAL_LEARNED_GLOBAL_DESCRIPTOR_H_
 
 #include <string>
 #include <vector>
@@ -116,4 +116,4 @@ void L2Normalise(std::vector<float>* v);
 
 }  // namespace locforge::learned
 
-#endif  // LOCFORGE_PLUGINS_LEARNED_GLOBAL_DESCRIPTOR_H_
+#endif  // LOCFORGE_PLUGINS_GLOBAL_LEARNED_GLOBAL_DESCRIPTOR_H_

@@ -5,8 +5,8 @@
 // surface sampled every few centimetres: the discs of a wall cover the wall
 // and hide what lies behind it), then the discs within blend_depth_m of it
 // average their depths, weighted by closeness to their centre.
-#ifndef LOCFORGE_PLUGINS_GT_DEPTH_PROJECTION_H_
-#define LOCFORGE_PLUGINS_GT_DEPTH_PROJECTION_H_
+#ifndef LOCFORGE_PLUGINS_GT_LIDAR_DEPTH_DEPTH_PROJECTION_H_
+#define LOCFORGE_PLUGINS_GT_LIDAR_DEPTH_DEPTH_PROJECTION_H_
 
 #include <Eigen/Core>
 
@@ -99,4 +99,4 @@ DepthMap DecodeDepth(const std::string& bytes, int width, int height, const std:
 
 }  // namespace locforge::depth
 
-#endif  // LOCFORGE_PLUGINS_GT_DEPTH_PROJECTION_H_
+#endif  // LOCFORGE_PLUGINS_GT_LIDAR_DEPTH_DEPTH_PROJECTION_H_

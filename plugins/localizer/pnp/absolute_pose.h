@@ -8,8 +8,8 @@
 // Pixel errors are measured as focal * (normalised error), which keeps the
 // refinement independent of the camera model (camera.h Unproject removes the
 // distortion once, up front).
-#ifndef LOCFORGE_PLUGINS_LOCALIZATION_ABSOLUTE_POSE_H_
-#define LOCFORGE_PLUGINS_LOCALIZATION_ABSOLUTE_POSE_H_
+#ifndef LOCFORGE_PLUGINS_LOCALIZER_PNP_ABSOLUTE_POSE_H_
+#define LOCFORGE_PLUGINS_LOCALIZER_PNP_ABSOLUTE_POSE_H_
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -96,4 +96,4 @@ AbsolutePoseResult EstimateAbsolutePose(const std::vector<Correspondence>& corre
 
 }  // namespace locforge::localization
 
-#endif  // LOCFORGE_PLUGINS_LOCALIZATION_ABSOLUTE_POSE_H_
+#endif  // LOCFORGE_PLUGINS_LOCALIZER_PNP_ABSOLUTE_POSE_H_

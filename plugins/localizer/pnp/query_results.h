@@ -3,8 +3,8 @@
 // processed (so the stage shards and resumes), and Finalize turns them into
 // the kapture trajectories, failures.txt and localization_stats.csv. A failed
 // query is listed with its reason and never given a pose.
-#ifndef LOCFORGE_PLUGINS_LOCALIZATION_QUERY_RESULTS_H_
-#define LOCFORGE_PLUGINS_LOCALIZATION_QUERY_RESULTS_H_
+#ifndef LOCFORGE_PLUGINS_LOCALIZER_PNP_QUERY_RESULTS_H_
+#define LOCFORGE_PLUGINS_LOCALIZER_PNP_QUERY_RESULTS_H_
 
 #include <string>
 #include <vector>
@@ -50,4 +50,4 @@ int WriteLocalizationOutputs(const fs::path& output_dir, const std::vector<Query
 
 }  // namespace locforge::localization
 
-#endif  // LOCFORGE_PLUGINS_LOCALIZATION_QUERY_RESULTS_H_
+#endif  // LOCFORGE_PLUGINS_LOCALIZER_PNP_QUERY_RESULTS_H_

@@ -12,8 +12,8 @@
 // its share of the hypotheses; the expert whose pose has the most inliers wins
 // (the paper picks the hypothesis of highest soft inlier count over all
 // experts: the same choice at the level of whole experts).
-#ifndef LOCFORGE_PLUGINS_REGRESSION_SCENE_REGRESSION_H_
-#define LOCFORGE_PLUGINS_REGRESSION_SCENE_REGRESSION_H_
+#ifndef LOCFORGE_PLUGINS_LOCALIZER_SCENE_REGRESSION_SCENE_REGRESSION_H_
+#define LOCFORGE_PLUGINS_LOCALIZER_SCENE_REGRESSION_SCENE_REGRESSION_H_
 
 #include <opencv2/core.hpp>
 #include <string>
@@ -66,4 +66,4 @@ int BestExpert(const std::vector<ExpertResult>& results);
 
 }  // namespace locforge::regression
 
-#endif  // LOCFORGE_PLUGINS_REGRESSION_SCENE_REGRESSION_H_
+#endif  // LOCFORGE_PLUGINS_LOCALIZER_SCENE_REGRESSION_SCENE_REGRESSION_H_

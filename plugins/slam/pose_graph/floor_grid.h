@@ -8,8 +8,8 @@
 // Two dimensions suffice for a wheeled platform on a level floor: returns in
 // a height band above the floor (walls, shop fronts, pillars, people), rays
 // from the platform's origin, one per azimuth bin to its nearest return.
-#ifndef LOCFORGE_PLUGINS_LIDAR_FLOOR_GRID_H_
-#define LOCFORGE_PLUGINS_LIDAR_FLOOR_GRID_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_FLOOR_GRID_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_FLOOR_GRID_H_
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -105,4 +105,4 @@ JoinEvidence EvaluateJoin(const FloorGrid& a, const FloorGrid& b, const Pose& T_
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_FLOOR_GRID_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_FLOOR_GRID_H_

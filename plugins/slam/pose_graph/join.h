@@ -4,8 +4,8 @@
 // of the whole overlap (floor_grid.h): a join is made only when one
 // hypothesis explains the overlap and no distinct one comes close; otherwise
 // it is refused and reported with the rival hypotheses.
-#ifndef LOCFORGE_PLUGINS_LIDAR_JOIN_H_
-#define LOCFORGE_PLUGINS_LIDAR_JOIN_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_JOIN_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_JOIN_H_
 
 #include <string>
 #include <vector>
@@ -96,4 +96,4 @@ JoinDecision DecideAfterTrials(const std::vector<JoinHypothesis>& hypotheses, co
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_JOIN_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_JOIN_H_

@@ -10,8 +10,8 @@
 // (a square room, a corridor crossing) yields many seed loops agreeing on a
 // wrong heading. The loops that disagree with the consensus are rejected,
 // not left to the robust loss.
-#ifndef LOCFORGE_PLUGINS_LIDAR_JOIN_CONSENSUS_H_
-#define LOCFORGE_PLUGINS_LIDAR_JOIN_CONSENSUS_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_JOIN_CONSENSUS_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_JOIN_CONSENSUS_H_
 
 #include <string>
 #include <vector>
@@ -71,4 +71,4 @@ JoinConsensus FindJoinConsensus(const std::vector<JoinCandidate>& candidates, co
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_JOIN_CONSENSUS_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_JOIN_CONSENSUS_H_

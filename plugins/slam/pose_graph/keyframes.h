@@ -3,8 +3,8 @@
 // keyframe_angle_deg turned), what each carries, and the motion model that
 // guesses their relative poses (wheel odometry, or constant velocity for
 // recordings without it).
-#ifndef LOCFORGE_PLUGINS_LIDAR_KEYFRAMES_H_
-#define LOCFORGE_PLUGINS_LIDAR_KEYFRAMES_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_KEYFRAMES_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_KEYFRAMES_H_
 
 #include <cmath>
 #include <string>
@@ -85,4 +85,4 @@ YawScaleFit FitYawScale(const std::vector<std::pair<double, double>>& pairs, con
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_KEYFRAMES_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_KEYFRAMES_H_

@@ -2,8 +2,8 @@
 // candidates by distance between estimated positions (and distance
 // travelled, within one sequence), a rough registration of downsampled
 // clouds with overlap and error thresholds, then the precise one.
-#ifndef LOCFORGE_PLUGINS_LIDAR_LOOP_SEARCH_H_
-#define LOCFORGE_PLUGINS_LIDAR_LOOP_SEARCH_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_LOOP_SEARCH_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_LOOP_SEARCH_H_
 
 #include <functional>
 #include <map>
@@ -58,4 +58,4 @@ std::vector<RegistrationResult> CheckLoop(const Registrar& registrar, const Refi
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_LOOP_SEARCH_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_LOOP_SEARCH_H_

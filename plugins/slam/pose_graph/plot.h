@@ -1,8 +1,8 @@
 // Top-down plot of pose-graph trajectories with their loop-closure edges,
 // before and after optimisation (the paper's Figure 4), through the SDK's
 // plot API (locforge/plot.h): one figure, written as SVG and PNG.
-#ifndef LOCFORGE_PLUGINS_LIDAR_PLOT_H_
-#define LOCFORGE_PLUGINS_LIDAR_PLOT_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_PLOT_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_PLOT_H_
 
 #include <Eigen/Core>
 #include <string>
@@ -31,4 +31,4 @@ void WriteTopDown(const fs::path& stem, const std::vector<PlotSequence>& before,
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_PLOT_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_PLOT_H_

@@ -6,8 +6,8 @@
 // Edge residual (as g2o's EDGE_SE3:QUAT and Ceres' pose_graph_3d):
 //   T_ab_est = T_wa^-1 T_wb,  r = [t_ab_est - t_ab ; 2 vec(q_ab^-1 q_ab_est)],
 //   cost = 1/2 rho(r^T Omega r), Omega in (translation, rotation) order.
-#ifndef LOCFORGE_PLUGINS_LIDAR_POSE_GRAPH_H_
-#define LOCFORGE_PLUGINS_LIDAR_POSE_GRAPH_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_POSE_GRAPH_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_POSE_GRAPH_H_
 
 #include <map>
 #include <string>
@@ -91,4 +91,4 @@ void WriteG2o(const fs::path& path, const PoseGraph& graph);  // atomic
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_POSE_GRAPH_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_POSE_GRAPH_H_

@@ -8,8 +8,8 @@
 //
 // Indoors the ceiling is everywhere at the same height: only returns in a
 // height band below it describe the place.
-#ifndef LOCFORGE_PLUGINS_LIDAR_SCAN_CONTEXT_H_
-#define LOCFORGE_PLUGINS_LIDAR_SCAN_CONTEXT_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SCAN_CONTEXT_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SCAN_CONTEXT_H_
 
 #include <Eigen/Core>
 #include <string>
@@ -47,4 +47,4 @@ double RingKeyDistance(const ScanContext& a, const ScanContext& b);
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_SCAN_CONTEXT_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SCAN_CONTEXT_H_

@@ -4,8 +4,8 @@
 // sequences joined into one frame only when the whole overlap confirms the
 // join (join.h). The stage (pose_graph_stage.cc) reads the scans, creates
 // the registration back-ends and writes what this computes.
-#ifndef LOCFORGE_PLUGINS_LIDAR_SLAM_H_
-#define LOCFORGE_PLUGINS_LIDAR_SLAM_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SLAM_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SLAM_H_
 
 #include <cmath>
 #include <functional>
@@ -231,4 +231,4 @@ class Slam {
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_SLAM_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SLAM_H_

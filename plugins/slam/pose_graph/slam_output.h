@@ -1,8 +1,8 @@
 // What slam/pose_graph writes (plugins/slam/README.md): trajectories of the
 // rig and the cameras, the map, the graph, the top-down figure, joins.csv and
 // slam.json.
-#ifndef LOCFORGE_PLUGINS_LIDAR_SLAM_OUTPUT_H_
-#define LOCFORGE_PLUGINS_LIDAR_SLAM_OUTPUT_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SLAM_OUTPUT_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SLAM_OUTPUT_H_
 
 #include <chrono>
 #include <string>
@@ -31,4 +31,4 @@ std::string UnjoinedMessage(const Slam& slam);
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_SLAM_OUTPUT_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SLAM_OUTPUT_H_

@@ -1,7 +1,7 @@
 // Tests only: scans of a floor plan of vertical walls (2-D segments), cast
 // from a platform pose, with known geometry.
-#ifndef LOCFORGE_PLUGINS_LIDAR_SYNTHETIC_FLOOR_H_
-#define LOCFORGE_PLUGINS_LIDAR_SYNTHETIC_FLOOR_H_
+#ifndef LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SYNTHETIC_FLOOR_H_
+#define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SYNTHETIC_FLOOR_H_
 
 #include <cmath>
 #include <limits>
@@ -50,4 +50,4 @@ inline Cloud SimulateFloorScan(const std::vector<Segment>& walls, const Pose& T_
 
 }  // namespace locforge::lidar
 
-#endif  // LOCFORGE_PLUGINS_LIDAR_SYNTHETIC_FLOOR_H_
+#endif  // LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_SYNTHETIC_FLOOR_H_

@@ -2,8 +2,8 @@
 // validation/ and test/ query kaptures become one query set whose image paths
 // keep their split ("validation/val_00/ind_0/...jpg"), so one localization run
 // and one evaluation (splits by image path) cover both.
-#ifndef LOCFORGE_PLUGINS_COLMAP_STAGES_KAPTURE_MERGE_H_
-#define LOCFORGE_PLUGINS_COLMAP_STAGES_KAPTURE_MERGE_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_KAPTURE_FOLDER_KAPTURE_MERGE_H_
+#define LOCFORGE_PLUGINS_SOURCE_KAPTURE_FOLDER_KAPTURE_MERGE_H_
 
 #include <string>
 #include <vector>
@@ -49,4 +49,4 @@ MergeReport MergeCameraKaptures(const std::vector<MergeSource>& sources, const f
 
 }  // namespace locforge::colmap_stages
 
-#endif  // LOCFORGE_PLUGINS_COLMAP_STAGES_KAPTURE_MERGE_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_KAPTURE_FOLDER_KAPTURE_MERGE_H_

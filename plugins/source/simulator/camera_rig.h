@@ -4,8 +4,8 @@
 // portrait, 77 deg diagonal, 1 Hz) slightly above them, a horizontal and a
 // vertical VLP-16, and the wheel encoders. Cameras run on their own clocks
 // (constant offset + per-frame jitter).
-#ifndef LOCFORGE_SIM_CAMERA_RIG_H_
-#define LOCFORGE_SIM_CAMERA_RIG_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_CAMERA_RIG_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_CAMERA_RIG_H_
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -79,4 +79,4 @@ std::vector<Capture> CaptureTimes(const CameraOptions& camera, double duration, 
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_CAMERA_RIG_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_CAMERA_RIG_H_

@@ -1,8 +1,8 @@
 // A whole simulated recording: presets, the plan of sequences (mapping and
 // query ones, days apart), and the writer of the kapture dataset with its
 // ground truth. Deterministic for a seed, whatever the number of threads.
-#ifndef LOCFORGE_SIM_DATASET_H_
-#define LOCFORGE_SIM_DATASET_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_DATASET_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_DATASET_H_
 
 #include <cstdint>
 #include <functional>
@@ -80,4 +80,4 @@ DatasetSummary GenerateDataset(const SimOptions& options, const fs::path& out, i
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_DATASET_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_DATASET_H_

@@ -1,8 +1,8 @@
 // Writing the simulated recording as kapture 1.1 text files (the toolbox's
 // layout: "# kapture format: 1.1", the column comment, fields joined by ", ")
 // and PCD point clouds. Every file is written atomically.
-#ifndef LOCFORGE_SIM_KAPTURE_OUT_H_
-#define LOCFORGE_SIM_KAPTURE_OUT_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_KAPTURE_OUT_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_KAPTURE_OUT_H_
 
 #include <cstdint>
 #include <string>
@@ -56,4 +56,4 @@ LidarScan DecodePcd(const std::string& bytes, const std::string& file_name);
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_KAPTURE_OUT_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_KAPTURE_OUT_H_

@@ -3,8 +3,8 @@
 // from the sensor pose at its own firing time (so scans carry the motion
 // distortion of the platform) and against the people at that instant, and is
 // reported in the sensor frame at that time, as a real sensor does.
-#ifndef LOCFORGE_SIM_LIDAR_H_
-#define LOCFORGE_SIM_LIDAR_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_LIDAR_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_LIDAR_H_
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -55,4 +55,4 @@ LidarScan SimulateScan(const World& world, const Trajectory& trajectory, const L
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_LIDAR_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_LIDAR_H_

@@ -2,8 +2,8 @@
 // corridor graph. Each is a textured body cylinder with a head cylinder on top;
 // their position is a pure function of time, so a LiDAR point or a pixel can be
 // checked against the crowd at its own instant.
-#ifndef LOCFORGE_SIM_PEOPLE_H_
-#define LOCFORGE_SIM_PEOPLE_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PEOPLE_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PEOPLE_H_
 
 #include <Eigen/Core>
 #include <array>
@@ -60,4 +60,4 @@ Crowd MakeCrowd(const SceneSpec& spec, double density, uint64_t seed);
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_PEOPLE_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PEOPLE_H_

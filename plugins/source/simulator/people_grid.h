@@ -6,8 +6,8 @@
 // segment are padded by kMargin, far more than any rounding), and returns the
 // items in ascending order, so testing them gives bit for bit the nearest hit
 // of testing every person, at a fraction of the cost in a crowd.
-#ifndef LOCFORGE_SIM_PEOPLE_GRID_H_
-#define LOCFORGE_SIM_PEOPLE_GRID_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PEOPLE_GRID_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PEOPLE_GRID_H_
 
 #include <Eigen/Core>
 #include <vector>
@@ -46,4 +46,4 @@ class PeopleGrid {
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_PEOPLE_GRID_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PEOPLE_GRID_H_

@@ -1,8 +1,8 @@
 // The mapping platform: a differential drive (origin at the centre of the
 // wheel axle, x forward, y left, z up), the trajectories it drives through the
 // corridor graph, and its wheel encoders.
-#ifndef LOCFORGE_SIM_PLATFORM_H_
-#define LOCFORGE_SIM_PLATFORM_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PLATFORM_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PLATFORM_H_
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -85,4 +85,4 @@ std::vector<PlanarState> IntegrateEncoders(const std::vector<EncoderReading>& re
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_PLATFORM_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_PLATFORM_H_

@@ -1,7 +1,7 @@
 // Ray casting: a bounding-volume hierarchy over the scene quads, and the World
 // (static scene of one day + the people at one instant) that rays hit.
-#ifndef LOCFORGE_SIM_RAYCAST_H_
-#define LOCFORGE_SIM_RAYCAST_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_RAYCAST_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_RAYCAST_H_
 
 #include <Eigen/Core>
 #include <cmath>
@@ -169,4 +169,4 @@ class World {
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_RAYCAST_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_RAYCAST_H_

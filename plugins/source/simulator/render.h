@@ -3,8 +3,8 @@
 // the pixel footprint), simple shading, glossy highlights, then the session's
 // exposure/gain and sensor noise. Also gives the true per-pixel person mask
 // and depth.
-#ifndef LOCFORGE_SIM_RENDER_H_
-#define LOCFORGE_SIM_RENDER_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_RENDER_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_RENDER_H_
 
 #include <cstdint>
 #include <vector>
@@ -40,4 +40,4 @@ void Render(const World& world, const std::vector<Cylinder>& people, const Pinho
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_RENDER_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_RENDER_H_

@@ -6,8 +6,8 @@
 // decide the hit (the first one tested wins): World::CastNear hands such rays
 // to QuadBvh, whose order defines the simulator's output, so every hit equals
 // QuadBvh's bit for bit.
-#ifndef LOCFORGE_SIM_SAH_BVH_H_
-#define LOCFORGE_SIM_SAH_BVH_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SAH_BVH_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SAH_BVH_H_
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -88,4 +88,4 @@ class SahBvh {
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_SAH_BVH_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SAH_BVH_H_

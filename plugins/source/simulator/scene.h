@@ -4,8 +4,8 @@
 // read from YAML or generated from a seed, then compiled into quads.
 //
 // World frame: x east, y north, z up, metres; the floor is z = 0.
-#ifndef LOCFORGE_SIM_SCENE_H_
-#define LOCFORGE_SIM_SCENE_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SCENE_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SCENE_H_
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -130,4 +130,4 @@ void AddPanel(const PanelSpec& panel, Scene* scene);
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_SCENE_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SCENE_H_

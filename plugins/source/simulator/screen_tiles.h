@@ -5,8 +5,8 @@
 // distance from the camera; items reaching behind the image plane go into
 // every tile, items wholly behind the camera into none. A pixel's ray then
 // tests its tile's items instead of walking a tree or a grid.
-#ifndef LOCFORGE_SIM_SCREEN_TILES_H_
-#define LOCFORGE_SIM_SCREEN_TILES_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SCREEN_TILES_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SCREEN_TILES_H_
 
 #include <Eigen/Core>
 #include <vector>
@@ -57,4 +57,4 @@ class ScreenTiles {
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_SCREEN_TILES_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_SCREEN_TILES_H_

@@ -6,8 +6,8 @@
 // on the day), glossy (dark panel; pair with Material::glossy), plain
 // (textureless temporary wall), clothes (people), marker (black disc on white,
 // centred, radius 0.35 of the texture; used by tests).
-#ifndef LOCFORGE_SIM_TEXTURE_H_
-#define LOCFORGE_SIM_TEXTURE_H_
+#ifndef LOCFORGE_PLUGINS_SOURCE_SIMULATOR_TEXTURE_H_
+#define LOCFORGE_PLUGINS_SOURCE_SIMULATOR_TEXTURE_H_
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -53,4 +53,4 @@ class TextureLibrary {
 
 }  // namespace locforge::sim
 
-#endif  // LOCFORGE_SIM_TEXTURE_H_
+#endif  // LOCFORGE_PLUGINS_SOURCE_SIMULATOR_TEXTURE_H_

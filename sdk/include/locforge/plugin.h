@@ -321,17 +321,20 @@ class PluginBuilder {
   LfPluginInfo info_{};
 };
 
-template <typename S, typename = void>
-struct IsExported : std::false_type {};
-template <typename S>
-struct IsExported<S, std::void_t<decltype(&S::kExportedStage)>> : std::true_type {};
+using StageAdder = void (*)(PluginBuilder&);
+
+// The stages the plugin's files registered with LOCFORGE_REGISTER_STAGE, in
+// link order. LOCFORGE_PLUGIN defines it once per plugin; hidden, so that
+// every plugin keeps its own list whatever the loader's symbol scope.
+__attribute__((visibility("hidden"))) std::vector<StageAdder>& RegisteredStages();
+
+struct StageRegistrar {
+  explicit StageRegistrar(StageAdder add) { RegisteredStages().push_back(add); }
+};
 
 template <typename S>
-void AddListed(PluginBuilder* builder) {
-  if constexpr (IsExported<S>::value)
-    S::Add(*builder);
-  else
-    builder->template AddStage<S>();
+void AddStageOf(PluginBuilder& builder) {
+  builder.template AddStage<S>();
 }
 
 template <typename... Stages>
@@ -339,7 +342,8 @@ const LfPluginInfo* BuildPlugin(const char* name, const char* version, const cha
   // Built once; never freed, as plugins are never unloaded.
   static const LfPluginInfo* info = [&] {
     auto* builder = new PluginBuilder(name, version, description);
-    (AddListed<Stages>(builder), ...);
+    (builder->template AddStage<Stages>(), ...);
+    for (StageAdder add : RegisteredStages()) add(*builder);
     return builder->Finish();
   }();
   return info;
@@ -347,34 +351,35 @@ const LfPluginInfo* BuildPlugin(const char* name, const char* version, const cha
 
 }  // namespace internal
 
-// A stage defined in another file of the same plugin, whose class stays
-// private to that file. The stage file ends with
-//   LOCFORGE_EXPORT_STAGE(AddPairsFile, PairsFileStage)
-// and the plugin's entry file declares and lists it:
-//   namespace locforge::pairs { LOCFORGE_DECLARE_STAGE(AddPairsFile); }
-//   LOCFORGE_PLUGIN("pairs", "1.0.0", "Image pairs", locforge::Exported<locforge::pairs::AddPairsFile>)
-using StageAdder = void (*)(internal::PluginBuilder&);
-template <StageAdder kAdd>
-struct Exported {
-  static constexpr bool kExportedStage = true;
-  static void Add(internal::PluginBuilder& builder) { kAdd(builder); }
-};
-
 }  // namespace locforge
 
-#define LOCFORGE_DECLARE_STAGE(FUNCTION) void FUNCTION(::locforge::internal::PluginBuilder& builder)
-#define LOCFORGE_EXPORT_STAGE(FUNCTION, STAGE) \
-  LOCFORGE_DECLARE_STAGE(FUNCTION) { builder.AddStage<STAGE>(); }
+// Registers a stage with the plugin its file is linked into, where the stage
+// is defined: adding a stage is its file plus its line in the plugin's
+// SOURCES. The plugin lists registered stages in link order, after those
+// LOCFORGE_PLUGIN names.
+//   class PairsFileStage : public locforge::Stage<PairsFileOptions> { ... };
+//   LOCFORGE_REGISTER_STAGE(PairsFileStage)
+#define LOCFORGE_REGISTER_STAGE(STAGE) LOCFORGE_REGISTER_STAGE_N(STAGE, __COUNTER__)
+#define LOCFORGE_REGISTER_STAGE_N(STAGE, N) LOCFORGE_REGISTER_STAGE_NN(STAGE, N)
+#define LOCFORGE_REGISTER_STAGE_NN(STAGE, N)                          \
+  static const ::locforge::internal::StageRegistrar locforge_stage_registrar_##N( \
+      &::locforge::internal::AddStageOf<STAGE>);
 
-// Defines the plugin's single exported entry point.
-#define LOCFORGE_PLUGIN(NAME, VERSION, DESCRIPTION, ...)                               \
-  extern "C" LF_EXPORT const LfPluginInfo* locforge_plugin_entry(uint32_t host_abi) {  \
-    if (host_abi != LF_ABI_VERSION) return nullptr;                                    \
-    try {                                                                              \
-      return ::locforge::internal::BuildPlugin<__VA_ARGS__>(NAME, VERSION, DESCRIPTION); \
-    } catch (...) {                                                                    \
-      return nullptr;                                                                  \
-    }                                                                                  \
+// Defines the plugin's single exported entry point and its list of
+// registered stages. The stages: those named here (classes visible in this
+// file), then those registered by the plugin's files (LOCFORGE_REGISTER_STAGE).
+#define LOCFORGE_PLUGIN(NAME, VERSION, DESCRIPTION, ...)                                   \
+  std::vector<::locforge::internal::StageAdder>& ::locforge::internal::RegisteredStages() { \
+    static std::vector<::locforge::internal::StageAdder> stages;                         \
+    return stages;                                                                       \
+  }                                                                                      \
+  extern "C" LF_EXPORT const LfPluginInfo* locforge_plugin_entry(uint32_t host_abi) {      \
+    if (host_abi != LF_ABI_VERSION) return nullptr;                                      \
+    try {                                                                                \
+      return ::locforge::internal::BuildPlugin<__VA_ARGS__>(NAME, VERSION, DESCRIPTION);   \
+    } catch (...) {                                                                      \
+      return nullptr;                                                                    \
+    }                                                                                    \
   }
 
 #endif  // LOCFORGE_PLUGIN_H_

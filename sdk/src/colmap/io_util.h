@@ -1,8 +1,8 @@
 // Private helpers of locforge_colmap: tokenising text lines, parsing numbers
 // with errors that name file, line and field, and a bounds-checked binary
 // reader. Not installed.
-#ifndef LOCFORGE_SRC_COLMAP_IO_UTIL_H_
-#define LOCFORGE_SRC_COLMAP_IO_UTIL_H_
+#ifndef LOCFORGE_SDK_SRC_COLMAP_IO_UTIL_H_
+#define LOCFORGE_SDK_SRC_COLMAP_IO_UTIL_H_
 
 #include <cstdint>
 #include <cstring>
@@ -68,4 +68,4 @@ void WriteLE(std::ostream& out, const T& value) {
 
 }  // namespace locforge::colmap::internal
 
-#endif  // LOCFORGE_SRC_COLMAP_IO_UTIL_H_
+#endif  // LOCFORGE_SDK_SRC_COLMAP_IO_UTIL_H_

@@ -1,7 +1,7 @@
 // File helpers shared by the parts of the kapture library (reader, writers,
 // copy, inspection). Internal: not installed.
-#ifndef LOCFORGE_SDK_KAPTURE_FILES_H_
-#define LOCFORGE_SDK_KAPTURE_FILES_H_
+#ifndef LOCFORGE_SDK_SRC_KAPTURE_FILES_H_
+#define LOCFORGE_SDK_SRC_KAPTURE_FILES_H_
 
 #include <algorithm>
 #include <filesystem>
@@ -104,4 +104,4 @@ int64_t CopyRecordsFile(const fs::path& from, const fs::path& to, const std::str
 
 }  // namespace locforge::kapture::files
 
-#endif  // LOCFORGE_SDK_KAPTURE_FILES_H_
+#endif  // LOCFORGE_SDK_SRC_KAPTURE_FILES_H_

@@ -5,8 +5,8 @@
 //   point [3], intrinsics [camera_model::NumParams(model)] (COLMAP order)
 //   control pose [qx qy qz qw tx ty tz] (see spline.h)
 //   extrinsic rotation q_body_camera [qx qy qz qw]; its translation is a constant.
-#ifndef LOCFORGE_SFM_COST_FUNCTIONS_H_
-#define LOCFORGE_SFM_COST_FUNCTIONS_H_
+#ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_COST_FUNCTIONS_H_
+#define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_COST_FUNCTIONS_H_
 
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/cost_function.h>
@@ -285,4 +285,4 @@ inline Eigen::Matrix<double, 6, 1> SqrtInformation(double sigma_rotation_rad, do
 
 }  // namespace locforge::sfm
 
-#endif  // LOCFORGE_SFM_COST_FUNCTIONS_H_
+#endif  // LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_COST_FUNCTIONS_H_

@@ -1,6 +1,6 @@
 // Process resource usage for the BA benchmarks (getrusage, Linux units).
-#ifndef LOCFORGE_PLUGINS_SFM_GT_BA_RESOURCE_USAGE_H_
-#define LOCFORGE_PLUGINS_SFM_GT_BA_RESOURCE_USAGE_H_
+#ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_RESOURCE_USAGE_H_
+#define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_RESOURCE_USAGE_H_
 
 #include <sys/resource.h>
 
@@ -23,4 +23,4 @@ inline double CpuSeconds() {
 
 }  // namespace locforge::sfm
 
-#endif  // LOCFORGE_PLUGINS_SFM_GT_BA_RESOURCE_USAGE_H_
+#endif  // LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_RESOURCE_USAGE_H_

@@ -17,8 +17,8 @@
 // The SE(3) Exp/Log here use the tangent order (rx, ry, rz, tx, ty, tz) of
 // locforge::ExpSE3/LogSE3 and are templated so Ceres Jets pass through
 // (small-angle branches are Taylor series, exact derivatives at 0).
-#ifndef LOCFORGE_SFM_SPLINE_H_
-#define LOCFORGE_SFM_SPLINE_H_
+#ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SPLINE_H_
+#define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SPLINE_H_
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -224,4 +224,4 @@ Pose PoseFromArray(const double* a);
 
 }  // namespace locforge::sfm
 
-#endif  // LOCFORGE_SFM_SPLINE_H_
+#endif  // LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SPLINE_H_

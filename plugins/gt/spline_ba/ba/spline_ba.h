@@ -18,8 +18,8 @@
 // Pose directions (locforge::Pose T_a_b maps b into a): everything here is
 // world-from-X (T_world_body, T_world_camera) or body-from-camera
 // (T_body_camera). kapture/COLMAP store T_camera_world: invert on the way in.
-#ifndef LOCFORGE_SFM_SPLINE_BA_H_
-#define LOCFORGE_SFM_SPLINE_BA_H_
+#ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SPLINE_BA_H_
+#define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SPLINE_BA_H_
 
 #include <Eigen/Core>
 #include <string>
@@ -230,4 +230,4 @@ std::vector<SensorStats> PerSensorStats(const BAProblem& problem);
 
 }  // namespace locforge::sfm
 
-#endif  // LOCFORGE_SFM_SPLINE_BA_H_
+#endif  // LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SPLINE_BA_H_

@@ -5,8 +5,8 @@
 // is what the LiDAR half would hand over: noisy platform trajectory,
 // perturbed intrinsics and rotational extrinsics, perturbed points, image
 // poses = noisy trajectory at the image timestamp x perturbed extrinsic.
-#ifndef LOCFORGE_SFM_SYNTHETIC_H_
-#define LOCFORGE_SFM_SYNTHETIC_H_
+#ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SYNTHETIC_H_
+#define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SYNTHETIC_H_
 
 #include <cstdint>
 
@@ -69,4 +69,4 @@ SceneErrors CompareToTruth(const BAProblem& estimate, const BAProblem& truth);
 
 }  // namespace locforge::sfm
 
-#endif  // LOCFORGE_SFM_SYNTHETIC_H_
+#endif  // LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SYNTHETIC_H_
