@@ -17,7 +17,9 @@
 #include "locforge/plugin.h"
 #include "wheel_odometry.h"
 
-namespace locforge::lidar {
+namespace locforge::calib {
+
+using namespace ::locforge::lidar;  // the library this stage wires
 
 struct LidarToLidarOptions {
   std::string dataset;           // the recording (or the `recording` input)
@@ -200,4 +202,4 @@ void LidarToLidar::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(LidarToLidar)
 
-}  // namespace locforge::lidar
+}  // namespace locforge::calib

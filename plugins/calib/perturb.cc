@@ -7,7 +7,9 @@
 #include "sfm_gt_common.h"
 #include "locforge/kapture/io.h"
 
-namespace locforge::sfm_gt {
+namespace locforge::calib {
+
+using namespace ::locforge::sfm_gt;  // the library this stage wires
 
 namespace {
 
@@ -123,4 +125,4 @@ void PerturbStage::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(PerturbStage)
 
-}  // namespace locforge::sfm_gt
+}  // namespace locforge::calib

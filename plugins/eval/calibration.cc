@@ -8,7 +8,9 @@
 #include "sfm_gt_common.h"
 #include "locforge/kapture/io.h"
 
-namespace locforge::sfm_gt {
+namespace locforge::eval {
+
+using namespace ::locforge::sfm_gt;  // the library this stage wires
 namespace {
 
 struct CalibrationEvalOptions {
@@ -291,4 +293,4 @@ void CalibrationEvalStage::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(CalibrationEvalStage)
 
-}  // namespace locforge::sfm_gt
+}  // namespace locforge::eval

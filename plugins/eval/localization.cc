@@ -9,7 +9,9 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::evaluation {
+namespace locforge::eval {
+
+using namespace ::locforge::evaluation;  // the library this stage wires
 
 namespace {
 
@@ -207,4 +209,4 @@ class LocalizationEval : public Stage<EvalOptions> {
 
 LOCFORGE_REGISTER_STAGE(LocalizationEval)
 
-}  // namespace locforge::evaluation
+}  // namespace locforge::eval

@@ -9,7 +9,9 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::evaluation {
+namespace locforge::eval {
+
+using namespace ::locforge::evaluation;  // the library this stage wires
 
 namespace {
 
@@ -106,4 +108,4 @@ class CombinedTable : public Stage<TableOptions> {
 
 LOCFORGE_REGISTER_STAGE(CombinedTable)
 
-}  // namespace locforge::evaluation
+}  // namespace locforge::eval

@@ -15,7 +15,9 @@
 #include "kapture_text.h"
 #include "locforge/plugin.h"
 
-namespace locforge::examples {
+namespace locforge::example {
+
+using namespace ::locforge::examples;  // the library this stage wires
 
 struct ImageStatsOptions {
   int bins = 16;  // Histogram bins over the full intensity range.
@@ -198,4 +200,4 @@ void ImageStats::Finalize(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(ImageStats)
 
-}  // namespace locforge::examples
+}  // namespace locforge::example

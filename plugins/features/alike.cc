@@ -7,7 +7,9 @@
 #include "locforge/plugin.h"
 #include "per_image_stage.h"
 
-namespace locforge::learned {
+namespace locforge::features {
+
+using namespace ::locforge::learned;  // the library this stage wires
 
 namespace {
 
@@ -52,4 +54,4 @@ class AlikeStage : public PerImageStage<AlikeOptions> {
 
 LOCFORGE_REGISTER_STAGE(AlikeStage)
 
-}  // namespace locforge::learned
+}  // namespace locforge::features

@@ -12,7 +12,9 @@
 #include "per_image_stage.h"
 #include "d2net.h"
 
-namespace locforge::learned {
+namespace locforge::features {
+
+using namespace ::locforge::learned;  // the library this stage wires
 
 namespace {
 
@@ -72,4 +74,4 @@ class D2netStage : public PerImageStage<D2netOptions> {
 
 LOCFORGE_REGISTER_STAGE(D2netStage)
 
-}  // namespace locforge::learned
+}  // namespace locforge::features

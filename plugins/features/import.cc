@@ -4,7 +4,7 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::sift {
+namespace locforge::features {
 
 namespace {
 
@@ -89,4 +89,4 @@ class ImportStage : public Stage<ImportOptions> {
 
 LOCFORGE_REGISTER_STAGE(ImportStage)
 
-}  // namespace locforge::sift
+}  // namespace locforge::features

@@ -12,7 +12,9 @@
 #include "per_image_stage.h"
 #include "r2d2.h"
 
-namespace locforge::learned {
+namespace locforge::features {
+
+using namespace ::locforge::learned;  // the library this stage wires
 
 namespace {
 
@@ -55,4 +57,4 @@ class R2d2Stage : public PerImageStage<R2d2Options> {
 
 LOCFORGE_REGISTER_STAGE(R2d2Stage)
 
-}  // namespace locforge::learned
+}  // namespace locforge::features

@@ -9,7 +9,9 @@
 #include "locforge/plugin.h"
 #include "sift.h"
 
-namespace locforge::sift {
+namespace locforge::features {
+
+using namespace ::locforge::sift;  // the library this stage wires
 
 namespace {
 
@@ -31,7 +33,7 @@ class SiftStage : public PerItemStage<SiftOptions> {
     StageMeta meta = {"features", "sift", "OpenCV SIFT keypoints and (Root)SIFT descriptors per image",
             {{"images", "kapture.dataset", "images to describe (records_camera.txt)"}},
             {{"features", "kapture.local_features", "keypoints + descriptors of one type"}}};
-    meta.version = "1.2.0";  // 1.2.0: a damaged image fails its item
+    meta.version = "1.3.0";  // 1.2.0: a damaged image fails its item; 1.3.0: cap_order
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -61,4 +63,4 @@ class SiftStage : public PerItemStage<SiftOptions> {
 
 LOCFORGE_REGISTER_STAGE(SiftStage)
 
-}  // namespace locforge::sift
+}  // namespace locforge::features

@@ -7,7 +7,9 @@
 #include "per_image_stage.h"
 #include "xfeat.h"
 
-namespace locforge::learned {
+namespace locforge::features {
+
+using namespace ::locforge::learned;  // the library this stage wires
 
 namespace {
 
@@ -52,4 +54,4 @@ class XfeatStage : public PerImageStage<XfeatOptions> {
 
 LOCFORGE_REGISTER_STAGE(XfeatStage)
 
-}  // namespace locforge::learned
+}  // namespace locforge::features

@@ -15,7 +15,9 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::retrieval {
+namespace locforge::global {
+
+using namespace ::locforge::retrieval;  // the library this stage wires
 
 namespace {
 
@@ -86,4 +88,4 @@ class DenseVladStage : public PerItemStage<DenseVladOptions> {
 
 LOCFORGE_REGISTER_STAGE(DenseVladStage)
 
-}  // namespace locforge::retrieval
+}  // namespace locforge::global

@@ -16,7 +16,9 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::retrieval {
+namespace locforge::global {
+
+using namespace ::locforge::retrieval;  // the library this stage wires
 
 namespace {
 
@@ -132,4 +134,4 @@ class VocabularyStage : public Stage<VocabularyOptions> {
 
 LOCFORGE_REGISTER_STAGE(VocabularyStage)
 
-}  // namespace locforge::retrieval
+}  // namespace locforge::global

@@ -15,7 +15,9 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::retrieval {
+namespace locforge::global {
+
+using namespace ::locforge::retrieval;  // the library this stage wires
 
 namespace {
 
@@ -77,4 +79,4 @@ class GlobalImportStage : public Stage<GlobalImportOptions> {
 
 LOCFORGE_REGISTER_STAGE(GlobalImportStage)
 
-}  // namespace locforge::retrieval
+}  // namespace locforge::global

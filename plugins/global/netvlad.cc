@@ -1,8 +1,10 @@
 // global/netvlad (learned_stage.h).
 #include "learned_stage.h"
 
-namespace locforge::learned {
+namespace locforge::global {
+
+using namespace ::locforge::learned;  // the library this stage wires
 
 LOCFORGE_REGISTER_STAGE(GlobalStage<GlobalModel::kNetVlad>)
 
-}  // namespace locforge::learned
+}  // namespace locforge::global

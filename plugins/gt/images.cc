@@ -7,7 +7,9 @@
 #include "sfm_gt_common.h"
 #include "locforge/kapture/io.h"
 
-namespace locforge::sfm_gt {
+namespace locforge::gt {
+
+using namespace ::locforge::sfm_gt;  // the library this stage wires
 
 namespace {
 
@@ -70,4 +72,4 @@ void ImagesStage::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(ImagesStage)
 
-}  // namespace locforge::sfm_gt
+}  // namespace locforge::gt

@@ -15,7 +15,7 @@
 #include "locforge/pointcloud_io.h"
 #include "locforge/registration.h"
 
-namespace locforge::sfm_gt {
+namespace locforge::gt {
 
 namespace {
 
@@ -148,4 +148,4 @@ class LidarDepthStage : public PerItemStage<LidarDepthOptions> {
 
 LOCFORGE_REGISTER_STAGE(LidarDepthStage)
 
-}  // namespace locforge::sfm_gt
+}  // namespace locforge::gt

@@ -6,6 +6,7 @@
 #include "locforge/plugin.h"
 #include "outer_loop.h"
 
+// The outer loop's options are declared beside the stage that binds them.
 namespace locforge::sfm_gt {
 
 void OuterLoopOptions::Declare(ParamSchema<OuterLoopOptions>& s) {
@@ -60,6 +61,12 @@ void OuterLoopOptions::Declare(ParamSchema<OuterLoopOptions>& s) {
   s.Add("timeout_s", &O::timeout_s, "kill colmap after this many seconds (0: never)").Min(0).NoCacheKey();
 }
 
+}  // namespace locforge::sfm_gt
+
+namespace locforge::gt {
+
+using namespace ::locforge::sfm_gt;  // the library this stage wires
+
 namespace {
 
 class SplineBAStage : public Stage<OuterLoopOptions> {
@@ -90,4 +97,4 @@ class SplineBAStage : public Stage<OuterLoopOptions> {
 
 LOCFORGE_REGISTER_STAGE(SplineBAStage)
 
-}  // namespace locforge::sfm_gt
+}  // namespace locforge::gt

@@ -11,7 +11,7 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::colmap_stages {
+namespace locforge::localizer {
 
 namespace {
 
@@ -84,4 +84,4 @@ class ColmapRegistrator : public Stage<RegistratorOptions> {
 
 LOCFORGE_REGISTER_STAGE(ColmapRegistrator)
 
-}  // namespace locforge::colmap_stages
+}  // namespace locforge::localizer

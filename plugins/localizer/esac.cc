@@ -7,7 +7,9 @@
 #include "regression_stage.h"
 #include "scene_regression.h"
 
-namespace locforge::regression {
+namespace locforge::localizer {
+
+using namespace ::locforge::regression;  // the library this stage wires
 namespace {
 
 namespace lz = locforge::localization;
@@ -165,4 +167,4 @@ class EsacLocalizer : public RegressionStage<EsacOptions> {
 }  // namespace
 LOCFORGE_REGISTER_STAGE(EsacLocalizer)
 
-}  // namespace locforge::regression
+}  // namespace locforge::localizer

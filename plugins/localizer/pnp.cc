@@ -13,7 +13,9 @@
 #include "locforge/kapture/rigs.h"
 #include "locforge/plugin.h"
 
-namespace locforge::localization {
+namespace locforge::localizer {
+
+using namespace ::locforge::localization;  // the library this stage wires
 namespace {
 
 namespace kp = locforge::kapture;
@@ -254,4 +256,4 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
 }  // namespace
 LOCFORGE_REGISTER_STAGE(PnPLocalizer)
 
-}  // namespace locforge::localization
+}  // namespace locforge::localizer

@@ -5,7 +5,9 @@
 #include "regression_stage.h"
 #include "scene_regression.h"
 
-namespace locforge::regression {
+namespace locforge::localizer {
+
+using namespace ::locforge::regression;  // the library this stage wires
 namespace {
 
 struct PoseNetOptions : InputOptions {
@@ -67,4 +69,4 @@ class PoseNetLocalizer : public RegressionStage<PoseNetOptions> {
 }  // namespace
 LOCFORGE_REGISTER_STAGE(PoseNetLocalizer)
 
-}  // namespace locforge::regression
+}  // namespace locforge::localizer

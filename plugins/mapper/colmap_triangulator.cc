@@ -11,7 +11,7 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::colmap_stages {
+namespace locforge::mapper {
 
 namespace {
 
@@ -109,4 +109,4 @@ class ColmapTriangulator : public Stage<TriangulatorOptions> {
 
 LOCFORGE_REGISTER_STAGE(ColmapTriangulator)
 
-}  // namespace locforge::colmap_stages
+}  // namespace locforge::mapper

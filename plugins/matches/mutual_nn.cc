@@ -12,7 +12,9 @@
 #include "match_io.h"
 #include "matching.h"
 
-namespace locforge::matching {
+namespace locforge::matches {
+
+using namespace ::locforge::matching;  // the library this stage wires
 
 namespace {
 
@@ -79,4 +81,4 @@ class MutualNnStage : public PerItemStage<MutualNnOptions> {
 
 LOCFORGE_REGISTER_STAGE(MutualNnStage)
 
-}  // namespace locforge::matching
+}  // namespace locforge::matches

@@ -7,7 +7,9 @@
 #include "locforge/plugin.h"
 #include "wheel_odometry.h"
 
-namespace locforge::lidar {
+namespace locforge::odometry {
+
+using namespace ::locforge::lidar;  // the library this stage wires
 
 struct DiffDriveOptions {
   std::string dataset;  // the recording (or the `recording` input): sensors/records_wheel_encoder.txt
@@ -57,4 +59,4 @@ class DiffDrive : public Stage<DiffDriveOptions> {
 
 LOCFORGE_REGISTER_STAGE(DiffDrive)
 
-}  // namespace locforge::lidar
+}  // namespace locforge::odometry

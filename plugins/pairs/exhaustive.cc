@@ -13,7 +13,9 @@
 #include "locforge/plugin.h"
 #include "pairs_io.h"
 
-namespace locforge::retrieval {
+namespace locforge::pairs {
+
+using namespace ::locforge::retrieval;  // the library this stage wires
 
 namespace {
 
@@ -50,4 +52,4 @@ class ExhaustiveStage : public Stage<NoOptions> {
 
 LOCFORGE_REGISTER_STAGE(ExhaustiveStage)
 
-}  // namespace locforge::retrieval
+}  // namespace locforge::pairs

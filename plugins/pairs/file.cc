@@ -13,7 +13,9 @@
 #include "locforge/plugin.h"
 #include "pairs_io.h"
 
-namespace locforge::retrieval {
+namespace locforge::pairs {
+
+using namespace ::locforge::retrieval;  // the library this stage wires
 
 namespace {
 
@@ -57,4 +59,4 @@ class PairsFileStage : public Stage<PairsFileOptions> {
 
 LOCFORGE_REGISTER_STAGE(PairsFileStage)
 
-}  // namespace locforge::retrieval
+}  // namespace locforge::pairs

@@ -14,7 +14,9 @@
 #include "locforge/plugin.h"
 #include "pairs_io.h"
 
-namespace locforge::retrieval {
+namespace locforge::pairs {
+
+using namespace ::locforge::retrieval;  // the library this stage wires
 
 namespace {
 
@@ -143,4 +145,4 @@ class PoseProximityStage : public Stage<ProximityOptions> {
 
 LOCFORGE_REGISTER_STAGE(PoseProximityStage)
 
-}  // namespace locforge::retrieval
+}  // namespace locforge::pairs

@@ -15,7 +15,9 @@
 #include "locforge/plugin.h"
 #include "pairs_io.h"
 
-namespace locforge::retrieval {
+namespace locforge::pairs {
+
+using namespace ::locforge::retrieval;  // the library this stage wires
 
 namespace {
 
@@ -151,4 +153,4 @@ class RetrievalStage : public PerItemStage<RetrievalOptions> {
 
 LOCFORGE_REGISTER_STAGE(RetrievalStage)
 
-}  // namespace locforge::retrieval
+}  // namespace locforge::pairs

@@ -17,7 +17,7 @@
 #include "locforge/plugin.h"
 #include "locforge/colmap/kapture_database.h"
 
-namespace locforge::colmap_stages {
+namespace locforge::pipeline {
 
 using namespace locforge::colmap;
 
@@ -286,4 +286,4 @@ void VocabTreeStage::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(VocabTreeStage)
 
-}  // namespace locforge::colmap_stages
+}  // namespace locforge::pipeline

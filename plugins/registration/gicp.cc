@@ -15,7 +15,9 @@
 #include "locforge/plugin.h"
 #include "locforge/registration.h"
 
-namespace locforge::gicp {
+namespace locforge::registration {
+
+using namespace ::locforge::gicp;  // the library this stage wires
 namespace {
 
 struct GicpOptions {
@@ -169,4 +171,4 @@ class Gicp : public RegistrationComponent<Gicp, GicpOptions> {
 }  // namespace
 LOCFORGE_REGISTER_STAGE(Gicp)
 
-}  // namespace locforge::gicp
+}  // namespace locforge::registration

@@ -10,9 +10,11 @@
 #include "locforge/plugin.h"
 #include "locforge/registration.h"
 #include "pcl_common.h"
-#include "point_to_plane.h"
+#include "gicp/point_to_plane.h"
 
-namespace locforge::pclreg {
+namespace locforge::registration {
+
+using namespace ::locforge::pclreg;  // the library this stage wires
 namespace {
 
 using Cloud = pcl::PointCloud<pcl::PointNormal>;
@@ -74,4 +76,4 @@ class IcpPlane : public RegistrationComponent<IcpPlane, PclOptions> {
 }  // namespace
 LOCFORGE_REGISTER_STAGE(IcpPlane)
 
-}  // namespace locforge::pclreg
+}  // namespace locforge::registration

@@ -9,7 +9,9 @@
 #include "locforge/registration.h"
 #include "pcl_common.h"
 
-namespace locforge::pclreg {
+namespace locforge::registration {
+
+using namespace ::locforge::pclreg;  // the library this stage wires
 namespace {
 
 using Gicp = WithIterations<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>;
@@ -53,4 +55,4 @@ class PclGicp : public RegistrationComponent<PclGicp, PclOptions> {
 }  // namespace
 LOCFORGE_REGISTER_STAGE(PclGicp)
 
-}  // namespace locforge::pclreg
+}  // namespace locforge::registration

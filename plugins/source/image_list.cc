@@ -12,7 +12,9 @@
 #include "kapture_text.h"
 #include "locforge/plugin.h"
 
-namespace locforge::examples {
+namespace locforge::source {
+
+using namespace ::locforge::examples;  // the library this stage wires
 
 struct ImageListOptions {
   std::string root;                                          // Folder imported.
@@ -111,4 +113,4 @@ void ImageList::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(ImageList)
 
-}  // namespace locforge::examples
+}  // namespace locforge::source

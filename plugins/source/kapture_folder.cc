@@ -12,7 +12,9 @@
 #include "locforge/plugin.h"
 #include "kapture_merge.h"
 
-namespace locforge::colmap_stages {
+namespace locforge::source {
+
+using namespace ::locforge::colmap_stages;  // the library this stage wires
 
 namespace {
 
@@ -108,4 +110,4 @@ class KaptureFolder : public Stage<KaptureFolderOptions> {
 
 LOCFORGE_REGISTER_STAGE(KaptureFolder)
 
-}  // namespace locforge::colmap_stages
+}  // namespace locforge::source

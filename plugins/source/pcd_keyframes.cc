@@ -12,7 +12,9 @@
 #include "locforge/kapture/kapture.h"
 #include "locforge/plugin.h"
 
-namespace locforge::lidar {
+namespace locforge::source {
+
+using namespace ::locforge::lidar;  // the library this stage wires
 
 // The i-th pose of the TUM file belongs to the i-th scan in file-name order.
 struct PcdKeyframesOptions {
@@ -155,4 +157,4 @@ void PcdKeyframes::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(PcdKeyframes)
 
-}  // namespace locforge::lidar
+}  // namespace locforge::source

@@ -5,7 +5,9 @@
 #include "dataset.h"
 #include "locforge/plugin.h"
 
-namespace locforge::sim {
+namespace locforge::source {
+
+using namespace ::locforge::sim;  // the library this stage wires
 
 struct SimulatorOptions {
   std::string preset = "small";    // Size of the recording: tiny | small | large.
@@ -115,4 +117,4 @@ class Simulator : public Stage<SimulatorOptions> {
 
 LOCFORGE_REGISTER_STAGE(Simulator)
 
-}  // namespace locforge::sim
+}  // namespace locforge::source

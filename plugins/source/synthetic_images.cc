@@ -12,7 +12,9 @@
 #include "kapture_text.h"
 #include "locforge/plugin.h"
 
-namespace locforge::examples {
+namespace locforge::source {
+
+using namespace ::locforge::examples;  // the library this stage wires
 
 struct SyntheticImagesOptions {
   int count = 8;        // Images generated.
@@ -126,4 +128,4 @@ void SyntheticImages::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(SyntheticImages)
 
-}  // namespace locforge::examples
+}  // namespace locforge::source

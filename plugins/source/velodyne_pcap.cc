@@ -10,7 +10,9 @@
 #include "locforge/pointcloud_io.h"
 #include "vlp16.h"
 
-namespace locforge::velodyne {
+namespace locforge::source {
+
+using namespace ::locforge::velodyne;  // the library this stage wires
 
 namespace {
 
@@ -153,4 +155,4 @@ void VelodynePcap::Run(RunContext& ctx) {
 
 LOCFORGE_REGISTER_STAGE(VelodynePcap)
 
-}  // namespace locforge::velodyne
+}  // namespace locforge::source

@@ -2,7 +2,9 @@
 // geometry of the two known poses.
 #include "verify_stage.h"
 
-namespace locforge::matching {
+namespace locforge::verify {
+
+using namespace ::locforge::matching;  // the library this stage wires
 
 namespace {
 
@@ -52,4 +54,4 @@ class KnownPoseEpipolarStage : public VerifyStage<EpipolarOptions> {
 
 LOCFORGE_REGISTER_STAGE(KnownPoseEpipolarStage)
 
-}  // namespace locforge::matching
+}  // namespace locforge::verify

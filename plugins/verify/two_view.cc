@@ -1,7 +1,9 @@
 // verify/two_view: RANSAC two-view geometry per matched pair (OpenCV USAC).
 #include "verify_stage.h"
 
-namespace locforge::matching {
+namespace locforge::verify {
+
+using namespace ::locforge::matching;  // the library this stage wires
 
 namespace {
 
@@ -69,4 +71,4 @@ class TwoViewStage : public VerifyStage<TwoViewStageOptions> {
 
 LOCFORGE_REGISTER_STAGE(TwoViewStage)
 
-}  // namespace locforge::matching
+}  // namespace locforge::verify

@@ -202,10 +202,10 @@ bool D2netOptions::Check(std::string* why) const {
   return true;
 }
 
-D2netFeatures ExtractD2net(const cv::Mat& rgb, const D2netOptions& o) {
-  if (rgb.empty() || rgb.type() != CV_8UC3) throw Error("ExtractD2net: expected an 8-bit RGB image");
-  cv::dnn::Net& net = ThreadNet(o.model);
-  // extract_features.py: max_edge, then max_sum_edges (imresize truncates sizes).
+namespace {
+
+// extract_features.py: max_edge, then max_sum_edges (imresize truncates sizes).
+cv::Mat ResizeForNetwork(const cv::Mat& rgb, const D2netOptions& o) {
   cv::Mat image = rgb;
   auto shrink = [&](double f) {
     cv::Mat r;
@@ -215,18 +215,83 @@ D2netFeatures ExtractD2net(const cv::Mat& rgb, const D2netOptions& o) {
   };
   if (std::max(image.rows, image.cols) > o.max_edge) shrink(double(o.max_edge) / std::max(image.rows, image.cols));
   if (image.rows + image.cols > o.max_sum_edges) shrink(double(o.max_sum_edges) / (image.rows + image.cols));
-  const double fact_i = double(rgb.rows) / image.rows, fact_j = double(rgb.cols) / image.cols;
+  return image;
+}
 
-  // Caffe preprocessing: BGR, mean-subtracted, as a 3 x H x W tensor.
+// Caffe preprocessing: BGR, mean-subtracted, as a 3 x H x W tensor.
+Tensor CaffeInput(const cv::Mat& image, const std::vector<double>& mean) {
   Tensor base{3, image.rows, image.cols, {}};
-  {
-    cv::Mat bgr, f;
-    cv::cvtColor(image, bgr, cv::COLOR_RGB2BGR);
-    bgr.convertTo(f, CV_32FC3);
-    cv::subtract(f, cv::Scalar(o.mean[0], o.mean[1], o.mean[2]), f);
-    const cv::Mat blob = ToBlob(f);
-    base.v.assign(blob.ptr<float>(), blob.ptr<float>() + blob.total());
+  cv::Mat bgr, f;
+  cv::cvtColor(image, bgr, cv::COLOR_RGB2BGR);
+  bgr.convertTo(f, CV_32FC3);
+  cv::subtract(f, cv::Scalar(mean[0], mean[1], mean[2]), f);
+  const cv::Mat blob = ToBlob(f);
+  base.v.assign(blob.ptr<float>(), blob.ptr<float>() + blob.total());
+  return base;
+}
+
+// The dense features of one pyramid level (C x h x w), timed.
+Tensor RunNetwork(cv::dnn::Net& net, const Tensor& input, const D2netOptions& o, double* network_seconds) {
+  const int sizes[4] = {1, 3, input.h, input.w};
+  cv::Mat blob(4, sizes, CV_32F, const_cast<float*>(input.v.data()));
+  const auto start = std::chrono::steady_clock::now();
+  cv::Mat f;
+  try {
+    net.setInput(blob, o.input);
+    f = net.forward(o.output);
+  } catch (const cv::Exception& e) {
+    throw InputError(o.model, 0, "model", "the network failed on a " + std::to_string(input.w) + "x" +
+                                              std::to_string(input.h) + " input: " + e.what());
   }
+  *network_seconds += SecondsSince(start);
+  if (f.dims != 4 || f.size[0] != 1 || f.depth() != CV_32F)
+    throw InputError(o.model, 0, "model", "output '" + o.output + "' is not 1 x C x h x w float32");
+  return Tensor{f.size[1], f.size[2], f.size[3], std::vector<float>(f.ptr<float>(), f.ptr<float>() + f.total())};
+}
+
+// banned = F.interpolate(banned, size=(h, w)) (mode 'nearest').
+std::vector<uint8_t> ResampleNearest(const std::vector<uint8_t>& banned, int banned_h, int banned_w, int h, int w) {
+  std::vector<uint8_t> out(static_cast<size_t>(h) * w, 0);
+  if (banned.empty()) return out;
+  const float ry = float(banned_h) / h, rx = float(banned_w) / w;
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) {
+      const int si = std::min(static_cast<int>(std::floor(i * ry)), banned_h - 1);
+      const int sj = std::min(static_cast<int>(std::floor(j * rx)), banned_w - 1);
+      out[static_cast<size_t>(i) * w + j] = banned[static_cast<size_t>(si) * banned_w + sj];
+    }
+  return out;
+}
+
+// The best top_k detections (all when 0), in the original image's pixels.
+void KeepBest(const std::vector<Detection>& all, int top_k, double fact_i, double fact_j, D2netFeatures* out) {
+  std::vector<size_t> order(all.size());
+  std::iota(order.begin(), order.end(), 0);
+  if (top_k > 0) {
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return all[a].score > all[b].score; });
+    if (order.size() > static_cast<size_t>(top_k)) order.resize(top_k);
+  }
+  for (size_t n : order) {
+    const Detection& det = all[n];
+    const float x = static_cast<float>(det.x * fact_j), y = static_cast<float>(det.y * fact_i);
+    out->raw_keypoints.insert(out->raw_keypoints.end(), {x, y, det.inv_scale});
+    out->keypoints.insert(out->keypoints.end(), {x + 0.5f, y + 0.5f, det.inv_scale});
+    out->descriptors.insert(out->descriptors.end(), det.descriptor.begin(), det.descriptor.end());
+    out->scores.push_back(det.score);
+  }
+}
+
+}  // namespace
+
+// The multi-scale pyramid of extract_features.py: each level's features plus
+// the coarser level's upsampled, detections banned where a coarser level
+// already detected.
+D2netFeatures ExtractD2net(const cv::Mat& rgb, const D2netOptions& o) {
+  if (rgb.empty() || rgb.type() != CV_8UC3) throw Error("ExtractD2net: expected an 8-bit RGB image");
+  cv::dnn::Net& net = ThreadNet(o.model);
+  const cv::Mat image = ResizeForNetwork(rgb, o);
+  const double fact_i = double(rgb.rows) / image.rows, fact_j = double(rgb.cols) / image.cols;
+  const Tensor base = CaffeInput(image, o.mean);
 
   D2netFeatures out;
   std::vector<Detection> all;
@@ -238,38 +303,14 @@ D2netFeatures ExtractD2net(const cv::Mat& rgb, const D2netOptions& o) {
     const int h_level = static_cast<int>(std::floor(base.h * scale));
     const int w_level = static_cast<int>(std::floor(base.w * scale));
     if (h_level < 8 || w_level < 8) continue;
-    const Tensor input = scale == 1.0 ? base : ResizeAlignCorners(base, h_level, w_level);
-    const int sizes[4] = {1, 3, h_level, w_level};
-    cv::Mat blob(4, sizes, CV_32F, const_cast<float*>(input.v.data()));
-    const auto start = std::chrono::steady_clock::now();
-    cv::Mat f;
-    try {
-      net.setInput(blob, o.input);
-      f = net.forward(o.output);
-    } catch (const cv::Exception& e) {
-      throw InputError(o.model, 0, "model", "the network failed on a " + std::to_string(w_level) + "x" +
-                                                std::to_string(h_level) + " input: " + e.what());
-    }
-    out.network_seconds += SecondsSince(start);
-    if (f.dims != 4 || f.size[0] != 1 || f.depth() != CV_32F)
-      throw InputError(o.model, 0, "model", "output '" + o.output + "' is not 1 x C x h x w float32");
-    Tensor d{f.size[1], f.size[2], f.size[3], std::vector<float>(f.ptr<float>(), f.ptr<float>() + f.total())};
+    Tensor d = RunNetwork(net, scale == 1.0 ? base : ResizeAlignCorners(base, h_level, w_level), o,
+                          &out.network_seconds);
     if (level > 0 && !previous.v.empty()) {
       if (previous.c != d.c) throw InputError(o.model, 0, "model", "channel count changes with the scale");
       const Tensor up = ResizeAlignCorners(previous, d.h, d.w);
       for (size_t n = 0; n < d.v.size(); ++n) d.v[n] += up.v[n];
     }
-    // banned = F.interpolate(banned, size=(h, w)) (mode 'nearest').
-    std::vector<uint8_t> level_banned(static_cast<size_t>(d.h) * d.w, 0);
-    if (!banned.empty()) {
-      const float ry = float(banned_h) / d.h, rx = float(banned_w) / d.w;
-      for (int i = 0; i < d.h; ++i)
-        for (int j = 0; j < d.w; ++j) {
-          const int si = std::min(static_cast<int>(std::floor(i * ry)), banned_h - 1);
-          const int sj = std::min(static_cast<int>(std::floor(j * rx)), banned_w - 1);
-          level_banned[static_cast<size_t>(i) * d.w + j] = banned[static_cast<size_t>(si) * banned_w + sj];
-        }
-    }
+    std::vector<uint8_t> level_banned = ResampleNearest(banned, banned_h, banned_w, d.h, d.w);
     std::vector<uint8_t> detected;
     DetectLevel(d, level_banned, o.edge_threshold, static_cast<int>(level), scale,
                 double(base.h) / h_level, double(base.w) / w_level, o.score == "soft", &all, &detected);
@@ -280,22 +321,7 @@ D2netFeatures ExtractD2net(const cv::Mat& rgb, const D2netOptions& o) {
     ++out.levels;
     previous = std::move(d);
   }
-
-  std::vector<size_t> order(all.size());
-  std::iota(order.begin(), order.end(), 0);
-  if (o.top_k > 0) {
-    std::stable_sort(order.begin(), order.end(),
-                     [&](size_t a, size_t b) { return all[a].score > all[b].score; });
-    if (order.size() > static_cast<size_t>(o.top_k)) order.resize(o.top_k);
-  }
-  for (size_t n : order) {
-    const Detection& det = all[n];
-    const float x = static_cast<float>(det.x * fact_j), y = static_cast<float>(det.y * fact_i);
-    out.raw_keypoints.insert(out.raw_keypoints.end(), {x, y, det.inv_scale});
-    out.keypoints.insert(out.keypoints.end(), {x + 0.5f, y + 0.5f, det.inv_scale});
-    out.descriptors.insert(out.descriptors.end(), det.descriptor.begin(), det.descriptor.end());
-    out.scores.push_back(det.score);
-  }
+  KeepBest(all, o.top_k, fact_i, fact_j, &out);
   return out;
 }
 

@@ -28,7 +28,36 @@ bool SameLocation(const cv::KeyPoint& a, const cv::KeyPoint& b) {
   return a.pt == b.pt && a.size == b.size;
 }
 
+// OpenCV packs the octave (signed byte; -1: the doubled image) and the
+// layer into KeyPoint::octave; the level orders keypoints by scale.
+int DogLevel(const cv::KeyPoint& kp) {
+  int octave = kp.octave & 255;
+  if (octave >= 128) octave -= 256;
+  const int layer = (kp.octave >> 8) & 255;
+  return octave * 256 + layer;
+}
+
 }  // namespace
+
+// COLMAP's cap (its CPU SIFT extraction, sift.h): whole DoG levels from the coarsest
+// down to the level at which the distinct locations exceed the cap, that level
+// kept whole. Large-scale keypoints repeat across viewpoints; a response cap
+// keeps the many fine-scale ones of a textured image instead.
+void KeepCoarsestLevels(std::vector<cv::KeyPoint>* keypoints, int max_locations) {
+  std::vector<cv::KeyPoint>& k = *keypoints;
+  // Stable: within a level, the strongest first (extra orientations of one
+  // location stay adjacent).
+  std::stable_sort(k.begin(), k.end(),
+                   [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return DogLevel(a) > DogLevel(b); });
+  int locations = 0;
+  size_t end = 0;
+  while (end < k.size() && locations <= max_locations) {
+    const int level = DogLevel(k[end]);
+    for (size_t first = end; end < k.size() && DogLevel(k[end]) == level; ++end)
+      if (end == first || !SameLocation(k[end - 1], k[end])) ++locations;
+  }
+  k.resize(end);
+}
 
 bool SiftOptions::Check(std::string* why) const {
   if (!kapture::IsFeatureTypeName(type)) {
@@ -85,7 +114,9 @@ SiftFeatures ExtractSift(const cv::Mat& gray_in, const SiftOptions& o) {
     }
     keypoints.swap(unique);
   }
-  if (o.max_keypoints > 0 && static_cast<int>(keypoints.size()) > o.max_keypoints)
+  if (o.max_keypoints > 0 && o.cap_order == "scale")
+    KeepCoarsestLevels(&keypoints, o.max_keypoints);
+  else if (o.max_keypoints > 0 && static_cast<int>(keypoints.size()) > o.max_keypoints)
     keypoints.resize(o.max_keypoints);
   SiftFeatures out;
   if (keypoints.empty()) return out;

@@ -19,13 +19,15 @@
 #include "locforge/params.h"
 
 namespace cv {
+class KeyPoint;
 class Mat;
 }
 
 namespace locforge::sift {
 
 struct SiftOptions {
-  int max_keypoints = 8000;        // Cap after extraction, strongest response first.
+  int max_keypoints = 8000;        // Cap after extraction, in cap_order.
+  std::string cap_order = "response";  // "response" or "scale" (COLMAP's: whole levels, coarsest first).
   bool root_sift = true;           // Hellinger (RootSIFT) normalisation of descriptors.
   bool upright = false;            // One keypoint per location, orientation 0.
   int octave_layers = 3;           // OpenCV nOctaveLayers.
@@ -38,7 +40,11 @@ struct SiftOptions {
 
   static void Declare(ParamSchema<SiftOptions>& s) {
     s.Add("max_keypoints", &SiftOptions::max_keypoints,
-          "Keypoints kept per image, strongest response first (0: all)").Min(0);
+          "Keypoints kept per image, in cap_order (0: all)").Min(0);
+    s.Add("cap_order", &SiftOptions::cap_order,
+          "Which keypoints the cap keeps: response (the strongest) or scale (COLMAP's rule: whole "
+          "DoG levels from the coarsest, down to the one that reaches the cap, kept whole)")
+        .Choices({"response", "scale"});
     s.Add("root_sift", &SiftOptions::root_sift, "RootSIFT (Hellinger) descriptors");
     s.Add("upright", &SiftOptions::upright, "One orientation-free keypoint per location");
     s.Add("octave_layers", &SiftOptions::octave_layers, "Layers per octave").Range(1, 10);
@@ -64,6 +70,11 @@ struct SiftFeatures {
 
 // Extracts SIFT on an 8-bit grey image. Deterministic for a given image.
 SiftFeatures ExtractSift(const cv::Mat& gray, const SiftOptions& options);
+
+// cap_order "scale": OpenCV keypoints (sorted strongest first) -> whole DoG
+// levels from the coarsest, down to and including the level at which the
+// distinct locations exceed max_locations (COLMAP's rule).
+void KeepCoarsestLevels(std::vector<cv::KeyPoint>* keypoints, int max_locations);
 
 // RootSIFT of one 128-vector in place: L1-normalise, then square root
 // (the result has unit L2 norm).

@@ -3,6 +3,7 @@
 // runtime: cap, layout, import of the sample's R2D2 features, conformance.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <opencv2/core.hpp>
@@ -111,6 +112,59 @@ TEST(Sift, CapIsExactAndKeepsStrongest) {
   EXPECT_EQ(fc.count(), 100);
   // The capped set is the first 100 of the full one (same order).
   for (int i = 0; i < 400; ++i) EXPECT_EQ(fa.keypoints[i], fc.keypoints[i]) << i;
+}
+
+// OpenCV's packing of a keypoint's octave (signed byte) and layer.
+cv::KeyPoint AtLevel(float x, int octave, int layer, float angle = 0) {
+  cv::KeyPoint kp(cv::Point2f(x, 0), 2.0f * (octave + 2), angle, 1.0f);
+  kp.octave = (octave & 255) | (layer << 8);
+  return kp;
+}
+
+TEST(Sift, ScaleCapKeepsWholeLevelsFromTheCoarsest) {
+  // Finest level first, as a response sort could leave them: octave -1 (the
+  // doubled image) layer 1: 10 locations; octave 0 layer 2: 4; octave 1
+  // layer 1: 3 locations, one with a second orientation.
+  std::vector<cv::KeyPoint> k;
+  for (int i = 0; i < 10; ++i) k.push_back(AtLevel(i, -1, 1));
+  for (int i = 0; i < 4; ++i) k.push_back(AtLevel(100 + i, 0, 2));
+  for (int i = 0; i < 3; ++i) k.push_back(AtLevel(200 + i, 1, 1));
+  k.push_back(AtLevel(202, 1, 1, 90));
+  std::vector<cv::KeyPoint> five = k, seven = k;
+  // Cap 5: octave 1 (3 locations) then octave 0 reaches 7 > 5, kept whole.
+  KeepCoarsestLevels(&five, 5);
+  ASSERT_EQ(five.size(), 8u);
+  for (int i = 0; i < 4; ++i) EXPECT_GE(five[i].pt.x, 200) << i;
+  for (int i = 4; i < 8; ++i) EXPECT_GE(five[i].pt.x, 100) << i;
+  // Cap 7: 7 locations do not exceed it, so the finest level comes too.
+  KeepCoarsestLevels(&seven, 7);
+  EXPECT_EQ(seven.size(), k.size());
+}
+
+TEST(Sift, ScaleCapKeepsLargerKeypointsOfARealExtraction) {
+  const cv::Mat image = TexturedImage(640, 480, 3);
+  SiftOptions all, by_scale;
+  all.max_keypoints = 0;
+  by_scale.max_keypoints = 100;
+  by_scale.cap_order = "scale";
+  const SiftFeatures fa = ExtractSift(image, all), fs = ExtractSift(image, by_scale);
+  ASSERT_GT(fa.count(), 400);
+  ASSERT_GE(fs.count(), 100);
+  ASSERT_LT(fs.count(), fa.count());
+  // Every kept keypoint is one of the full set, and the kept are the large
+  // ones: the smallest kept scale is above the median of the full set.
+  std::vector<float> scales;
+  for (int i = 0; i < fa.count(); ++i) scales.push_back(fa.keypoints[4 * i + 2]);
+  std::nth_element(scales.begin(), scales.begin() + scales.size() / 2, scales.end());
+  float smallest_kept = 1e9f;
+  for (int i = 0; i < fs.count(); ++i) {
+    smallest_kept = std::min(smallest_kept, fs.keypoints[4 * i + 2]);
+    bool found = false;
+    for (int j = 0; j < fa.count() && !found; ++j)
+      found = std::equal(&fs.keypoints[4 * i], &fs.keypoints[4 * i + 4], &fa.keypoints[4 * j]);
+    EXPECT_TRUE(found) << i;
+  }
+  EXPECT_GT(smallest_kept, scales[scales.size() / 2]);
 }
 
 TEST(Sift, RootSiftHasUnitL2Norm) {

@@ -28,8 +28,7 @@ double MotionModel::Distance(Timestamp a, Timestamp b) const {
 }
 
 std::vector<KeyframeChoice> ChooseKeyframes(const std::vector<ScanStamp>& scans, const MotionModel& motion,
-                                            double keyframe_distance_m, double keyframe_angle_deg) {
-  const double max_angle = keyframe_angle_deg * M_PI / 180;
+                                            double keyframe_distance_m, double keyframe_angle_rad) {
   std::vector<KeyframeChoice> out;
   for (size_t i = 0; i < scans.size(); ++i) {
     const ScanStamp& s = scans[i];
@@ -39,7 +38,7 @@ std::vector<KeyframeChoice> ChooseKeyframes(const std::vector<ScanStamp>& scans,
     double travelled = 0;
     if (!start && motion.has_odometry()) {
       const Pose rel = motion.Relative(last->timestamp, s.timestamp);
-      if (rel.t.norm() < keyframe_distance_m && Eigen::AngleAxisd(rel.q).angle() < max_angle) continue;
+      if (rel.t.norm() < keyframe_distance_m && Eigen::AngleAxisd(rel.q).angle() < keyframe_angle_rad) continue;
       travelled = out.back().travelled + motion.Distance(last->timestamp, s.timestamp);
     }
     out.push_back({i, start, travelled});

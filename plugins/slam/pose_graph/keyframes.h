@@ -66,7 +66,7 @@ struct KeyframeChoice {
 // are skipped, a scan is a keyframe when the motion since the last one
 // reaches either threshold; without odometry every scan is one.
 std::vector<KeyframeChoice> ChooseKeyframes(const std::vector<ScanStamp>& scans, const MotionModel& motion,
-                                            double keyframe_distance_m, double keyframe_angle_deg);
+                                            double keyframe_distance_m, double keyframe_angle_rad);
 
 // Wheel odometry's turns, calibrated against the registrations of the same
 // keyframe pairs: registered yaw = k * odometry yaw, least squares over a

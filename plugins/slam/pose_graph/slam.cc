@@ -73,7 +73,7 @@ void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::funct
   }
   ScanContextOptions sco;
   std::map<std::string, Pose> start_poses;
-  for (const KeyframeChoice& c : ChooseKeyframes(scans, motion_, o_.keyframe_distance_m, o_.keyframe_angle_deg)) {
+  for (const KeyframeChoice& c : ChooseKeyframes(scans, motion_, o_.keyframe_distance_m, o_.keyframe_angle_rad)) {
     const ScanStamp& s = scans[c.scan];
     Keyframe kf;
     kf.id = static_cast<int>(keyframes_.size());
@@ -105,7 +105,7 @@ void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::funct
                      odometry_ ? "no scan covered by odometry" : "no scan");
   if (o_.planar) {
     graph_.planar_sigma_z = o_.planar_sigma_z_m;
-    graph_.planar_sigma_tilt = o_.planar_sigma_tilt_deg * M_PI / 180;
+    graph_.planar_sigma_tilt = o_.planar_sigma_tilt_rad;
   }
 }
 
@@ -130,7 +130,7 @@ Pose Slam::MotionGuess(size_t i) const {
 // directions have the sigmas (SlamOptions); fixed sigmas when asked
 // for or when the Hessian is unusable.
 Matrix6d Slam::EdgeInformation(const RegistrationResult& r, const Pose& T_ab) {
-  const double sigma_r = o_.sigma_rotation_deg * M_PI / 180;
+  const double sigma_r = o_.sigma_rotation_rad;
   const Matrix6d fixed = DiagonalInformation(o_.sigma_translation_m, sigma_r);
   if (o_.edge_information == "fixed") return fixed;
   Matrix6d out;
@@ -286,7 +286,7 @@ void Slam::AddSequentialEdges() {
   std::map<std::string, std::vector<std::pair<size_t, double>>> odometry_edges;
   std::vector<long> sequential_edge(keyframes_.size(), -1);  // per keyframe i: the edge (i-1, i)
   std::vector<bool> accepted(keyframes_.size(), false);      // ... from an accepted registration
-  const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation_m, 5 * o_.sigma_rotation_deg * M_PI / 180);
+  const Matrix6d odo_info = DiagonalInformation(5 * o_.sigma_translation_m, 5 * o_.sigma_rotation_rad);
   std::vector<size_t> items;
   for (size_t i = 1; i < keyframes_.size(); ++i)
     if (motion_.SameSegment(keyframes_[i - 1].sequence, keyframes_[i - 1].timestamp, keyframes_[i].sequence,
@@ -320,7 +320,7 @@ void Slam::AddSequentialEdges() {
       // Turning in place: wheel-radius and axle errors scale the turned angle (5 % here).
       const double turned = Eigen::AngleAxisd(guess.q).angle();
       odo.information = DiagonalInformation(o_.odometry_sigma_m_per_m * d,
-                                            o_.odometry_sigma_rotation_deg_per_m * M_PI / 180 * d + 0.05 * turned);
+                                            o_.odometry_sigma_rotation_rad_per_m * d + 0.05 * turned);
       odometry_edges[b.sequence].emplace_back(graph_.edges.size(), YawOf(e.T_from_to));
       graph_.edges.push_back(odo);
     }

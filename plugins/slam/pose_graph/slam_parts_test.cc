@@ -35,7 +35,7 @@ TEST(Keyframes, OnePerKeyframeDistanceAndAtEverySegmentStart) {
   for (int i = 0; i <= 40; ++i) scans.push_back({100000000 + i * 100000, "b"});
   scans.push_back({500000000, "b"});  // not covered by odometry
   const MotionModel motion(&odometry, 2.0, 1e-6);
-  const auto k = ChooseKeyframes(scans, motion, 0.5, 10);
+  const auto k = ChooseKeyframes(scans, motion, 0.5, DegreesToRadians(10));
   // Sequence a: 5.2 m at 0.052 m per scan -> every 10th scan (11 keyframes);
   // sequence b: its first scan only (no motion); the uncovered scan skipped.
   ASSERT_EQ(k.size(), 12u);
@@ -48,7 +48,7 @@ TEST(Keyframes, OnePerKeyframeDistanceAndAtEverySegmentStart) {
   EXPECT_TRUE(k[11].segment_start);
   // Without odometry every scan is a keyframe; a time gap starts a segment.
   const MotionModel none(nullptr, 0.5, 1e-6);
-  const auto all = ChooseKeyframes({{0, "s"}, {100000, "s"}, {900000, "s"}, {1000000, "t"}}, none, 0.5, 10);
+  const auto all = ChooseKeyframes({{0, "s"}, {100000, "s"}, {900000, "s"}, {1000000, "t"}}, none, 0.5, DegreesToRadians(10));
   ASSERT_EQ(all.size(), 4u);
   EXPECT_EQ(std::vector<bool>({all[0].segment_start, all[1].segment_start, all[2].segment_start,
                                all[3].segment_start}),

@@ -252,6 +252,9 @@ class ParamBuilder {
   ParamDecl* decl_;
 };
 
+template <typename Options, typename M>
+class ParamGroup;
+
 template <typename Options>
 class ParamSchema {
  public:
@@ -280,6 +283,12 @@ class ParamSchema {
     return AddField<internal::DegreeTraits, double>(
         name, doc, [outer, inner](Options& o) -> double& { return (o.*outer).*inner; });
   }
+
+  // Every option of a member struct M, declared once by M's own
+  // `template <typename Schema> static void Declare(Schema&)` (which also
+  // serves ParamSchema<M>): a library's options bound in place.
+  template <typename M>
+  void AddGroup(M Options::*outer);
 
   std::vector<ParamDecl> Decls() const {
     std::vector<ParamDecl> out;
@@ -326,6 +335,32 @@ class ParamSchema {
   }
   std::vector<std::unique_ptr<Entry>> entries_;
 };
+
+// The view of a ParamSchema<Options> that M::Declare writes through: its
+// Add / AddDegrees name members of M, bound as members of Options' `outer`.
+template <typename Options, typename M>
+class ParamGroup {
+ public:
+  ParamGroup(ParamSchema<Options>* schema, M Options::*outer) : schema_(schema), outer_(outer) {}
+  template <typename T>
+  ParamBuilder Add(const char* name, T M::*field, const char* doc) {
+    return schema_->Add(name, outer_, field, doc);
+  }
+  ParamBuilder AddDegrees(const char* name, double M::*field, const char* doc) {
+    return schema_->AddDegrees(name, outer_, field, doc);
+  }
+
+ private:
+  ParamSchema<Options>* schema_;
+  M Options::*outer_;
+};
+
+template <typename Options>
+template <typename M>
+void ParamSchema<Options>::AddGroup(M Options::*outer) {
+  ParamGroup<Options, M> group(this, outer);
+  M::Declare(group);
+}
 
 // Options of a stage without parameters.
 struct NoOptions {

@@ -17,9 +17,10 @@ inline constexpr double kDefaultSecondsPerUnit = 1e-6;
 inline constexpr const char* kSecondsPerUnitDoc =
     "Duration of one kapture timestamp unit (s; 1e-6: microseconds)";
 
-// The `seconds_per_unit` option of a stage that reads kapture timestamps.
-template <typename Options>
-ParamBuilder AddSecondsPerUnit(ParamSchema<Options>& s, double Options::*field) {
+// The `seconds_per_unit` option of a stage that reads kapture timestamps
+// (Schema: a ParamSchema<Options>, or a ParamGroup whose members are Options').
+template <typename Schema, typename Options>
+ParamBuilder AddSecondsPerUnit(Schema& s, double Options::*field) {
   return s.Add("seconds_per_unit", field, kSecondsPerUnitDoc).Range(1e-12, 1);
 }
 template <typename Options, typename M>

@@ -1,4 +1,4 @@
-#include "point_to_plane.h"
+#include "gicp/point_to_plane.h"
 
 namespace locforge::gicp {
 

@@ -2,8 +2,8 @@
 // not report them, e.g. PCL's ICP): inliers, cost and the Gauss-Newton
 // information H = sum J^T J of the residual n^T (t - T s), with
 // J = n^T [ [Ts]x, -I ] (left perturbation, tangent order rx ry rz tx ty tz).
-#ifndef LOCFORGE_PLUGINS_REGISTRATION_POINT_TO_PLANE_H_
-#define LOCFORGE_PLUGINS_REGISTRATION_POINT_TO_PLANE_H_
+#ifndef LOCFORGE_PLUGINS_REGISTRATION_GICP_POINT_TO_PLANE_H_
+#define LOCFORGE_PLUGINS_REGISTRATION_GICP_POINT_TO_PLANE_H_
 
 #include "gicp/factor.h"
 
@@ -16,4 +16,4 @@ LinearSystem PointToPlaneSystem(const Points& source, const Points& target,
 
 }  // namespace locforge::gicp
 
-#endif  // LOCFORGE_PLUGINS_REGISTRATION_POINT_TO_PLANE_H_
+#endif  // LOCFORGE_PLUGINS_REGISTRATION_GICP_POINT_TO_PLANE_H_
