@@ -62,10 +62,14 @@ def protocols(shared):
 
 
 METHODS = {
-    # name: (graph, [(row label, eval node, solver node)])
+    # name: (graph, [(row label, eval node)], model var or None, model file under the build's models/)
     "ours": ("configs/benchmark/sift_densevlad.yaml",
-             [("ours (pnp)", "eval_pnp"), ("ours, image_registrator", "eval_colmap")]),
-    "colmap_classic": ("configs/benchmark/colmap_classic.yaml", [("COLMAP classic", "eval")]),
+             [("ours (pnp)", "eval_pnp"), ("ours, image_registrator", "eval_colmap")], None, None),
+    "colmap_classic": ("configs/benchmark/colmap_classic.yaml", [("COLMAP classic", "eval")], None, None),
+    # The learned rows (not compared with COLMAP: they are the default recipe with other features).
+    "xfeat": ("configs/benchmark/xfeat_densevlad.yaml", [("XFeat (pnp)", "eval_pnp")], "xfeat_model", "xfeat.onnx"),
+    "alike_n": ("configs/benchmark/alike_densevlad.yaml", [("ALIKE-n (pnp)", "eval_pnp")], "alike_model",
+                "alike-n.onnx"),
 }
 
 
@@ -127,7 +131,8 @@ def main():
     p.add_argument("--locforge", type=Path, default=REPO / "build/bin/locforge")
     p.add_argument("--shared", type=Path, default=REPO.parent / "shared")
     p.add_argument("--protocols", default="", help="comma-separated subset (default: all)")
-    p.add_argument("--methods", default="ours,colmap_classic", help="comma-separated subset")
+    p.add_argument("--methods", default="ours,colmap_classic",
+                   help="comma-separated subset of " + ", ".join(METHODS))
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--set", action="append", default=[], help="extra --set for the 'ours' graph")
     p.add_argument("--reuse", nargs="?", const="all", default="",
@@ -154,10 +159,13 @@ def main():
         map_dir = data if spec["map"] in ("REC", "GT") else spec["map"]
         query_dir = data if spec["query"] in ("REC", "GT") else spec["query"]
         for method in methods:
-            graph, rows = METHODS[method]
+            graph, rows, model_var, model_file = METHODS[method]
             ws = args.workspace / name / method
             timing = ws / "suite_run.json"
             extra = [a for s in (args.set if method == "ours" else []) for a in ("--set", s)]
+            if model_var:  # the build exports the models beside its bin/
+                model = Path(args.locforge).resolve().parent.parent / "models" / model_file
+                extra += ["--set", f"{model_var}={model}"]
             cmd = [str(args.locforge), "run", str(REPO / graph), "--workspace", str(ws),
                    "--threads", str(args.threads), "--set", f"map={map_dir}",
                    "--set", f"query={query_dir}"] + spec["args"] + extra
@@ -177,9 +185,11 @@ def main():
                 tmp = timing.with_suffix(".tmp")
                 tmp.write_text(json.dumps(t, indent=1))
                 os.replace(tmp, timing)
+            feat_cpu, feat_wall = feature_seconds(ws)
             for label, node in rows:
                 s = score(ws / "nodes" / node / "per_query.csv", spec["thresholds"])
                 results.append(dict(protocol=name, method=label, wall_s=t["wall_s"], cpu_s=t["cpu_s"],
+                                    feat_cpu=feat_cpu, feat_wall=feat_wall,
                                     thresholds=spec["thresholds"], first=(label == rows[0][0]), **s))
             print(f"[{name}] {method}: {t['wall_s']:.0f} s wall", flush=True)
     write_tables(args.workspace, results)
@@ -203,17 +213,27 @@ def verdict(ours, colmap):
     return "holds" if not notes else "LOSES: " + ", ".join(notes)
 
 
+def feature_seconds(ws):
+    """Local features' CPU and wall seconds per image (the *_features nodes' manifests)."""
+    cpu = wall = items = 0
+    for manifest in ws.glob("nodes/*_features/.locforge-complete"):
+        m = json.loads(manifest.read_text())
+        cpu, wall, items = cpu + m["cpu_seconds"], wall + m["seconds"], items + m["items"]
+    return (cpu / items, wall / items) if items else (float("nan"), float("nan"))
+
+
 def write_tables(root, results):
     header = ["protocol", "method", "queries", "localized", "recall (paper thresholds) %",
               "recall (object thresholds) %", "median position", "median rotation", "CPU s", "wall s",
-              "wall / COLMAP's", "against COLMAP classic"]
+              "features s / image: CPU, wall", "wall / COLMAP's", "against COLMAP classic"]
     by = {(r["protocol"], r["method"]): r for r in results}
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     with open(root / "suite.csv.tmp", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["protocol", "method", "queries", "localized", "recall_0.1m_1deg", "recall_0.25m_2deg",
                     "recall_1m_5deg", "recall_5mm_0.5deg", "recall_1cm_1deg", "recall_2cm_2deg",
-                    "median_position_m", "median_rotation_deg", "cpu_s", "wall_s"])
+                    "median_position_m", "median_rotation_deg", "cpu_s", "wall_s",
+                    "features_cpu_s_per_image", "features_wall_s_per_image"])
         for r in results:
             colmap = by.get((r["protocol"], "COLMAP classic"))
             paper, obj = r["recall"][:3], r["recall"][3:]
@@ -224,10 +244,12 @@ def write_tables(root, results):
                 r["protocol"], r["method"], str(r["queries"]), str(r["localized"]), fmt_recall(paper),
                 fmt_recall(obj) if obj else "", f"{1000 * r['median_m']:.2f} mm", f"{r['median_deg']:.4f} deg",
                 f"{r['cpu_s']:.0f}" if timed else "(same run)", f"{r['wall_s']:.0f}" if timed else "",
+                f"{r['feat_cpu']:.2f}, {r['feat_wall']:.2f}" if timed and r["feat_cpu"] == r["feat_cpu"] else "",
                 ratio, against]) + " |")
             w.writerow([r["protocol"], r["method"], r["queries"], r["localized"]] + paper +
                        (obj if obj else ["", "", ""]) + [r["median_m"], r["median_deg"],
-                                                         r["cpu_s"] if timed else "", r["wall_s"] if timed else ""])
+                                                         r["cpu_s"] if timed else "", r["wall_s"] if timed else "",
+                                                         r["feat_cpu"] if timed else "", r["feat_wall"] if timed else ""])
     os.replace(root / "suite.csv.tmp", root / "suite.csv")
     text = "\n".join(lines) + "\n"
     (root / "suite.md.tmp").write_text(text)
