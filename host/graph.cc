@@ -524,8 +524,12 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
     } else {
       node.stage_where = At(stage);
       fs::path base;
-      node.stage =
-          Substitute(Value{{Unmask(stage.Scalar())}, false}, node.stage_where, &base).scalar();
+      const Value chosen = Substitute(Value{{Unmask(stage.Scalar())}, false}, node.stage_where, &base);
+      node.stage = chosen.scalar();
+      // A variable holding {stage: ID, params: {...}} chooses the stage and
+      // its parameters; the node's own params (read below) override them.
+      for (const ComponentParam& p : chosen.is_component ? chosen.params : std::vector<ComponentParam>{})
+        node.params[p.name] = ParamValue{p.value, p.key_where, p.value_where, BaseDir(base), false};
     }
     if (const YAML::Node params = body["params"]) {
       if (!params.IsMap() && !params.IsNull()) {

@@ -459,6 +459,32 @@ TEST(GraphParse, ComponentFromTheCommandLine) {
             "registration/fake_icp" + std::string(1, LF_COMPONENT_SEPARATOR) + "iterations=7");
 }
 
+TEST(GraphParse, NodeStageFromAComponentVariable) {
+  // The variable chooses the stage and its parameters; the node's own
+  // params override them; --set replaces the choice.
+  const std::string graph = R"(locforge: 1
+vars:
+  features: {stage: source/images, params: {count: 5, mode: fast}}
+nodes:
+  a:
+    stage: "${features}"
+    params: {mode: slow}
+)";
+  const Parsed p = Parse(graph);
+  ASSERT_TRUE(p.ok) << p.Text();
+  const NodeSpec& a = NodeOf(p.graph, "a");
+  EXPECT_EQ(a.stage, "source/images");
+  EXPECT_EQ(a.params.at("count").value.scalar(), "5");
+  EXPECT_EQ(a.params.at("mode").value.scalar(), "slow");
+  EXPECT_EQ(a.params.at("count").value_where.ToString(), "/graphs/g.yaml:3:52");
+  const Parsed q = Parse(graph, {{"features", "{stage: features/sift, params: {scales: [1, 2]}}"}});
+  ASSERT_TRUE(q.ok) << q.Text();
+  const NodeSpec& b = NodeOf(q.graph, "a");
+  EXPECT_EQ(b.stage, "features/sift");
+  EXPECT_EQ(b.params.at("scales").value.items, (std::vector<std::string>{"1", "2"}));
+  EXPECT_EQ(b.params.count("count"), 0u);
+}
+
 TEST(GraphParse, RequiredVariableSaysHowToGiveIt) {
   const std::string graph = R"(locforge: 1
 vars:

@@ -89,7 +89,7 @@ void PerturbStage::Run(RunContext& ctx) {
       cam.params[pp[1]] += dcy;
     }
     out_sensors.Add(kp::MakeCameraSensor(s.id, s.name, cam));
-    const double angle = o.rotation_deg * M_PI / 180.0;
+    const double angle = DegreesToRadians(o.rotation_deg);
     // Rotation of the camera about its own centre: T_C'C = (R, 0), so
     // T_C'_rig = T_C'C T_C_rig keeps the CAD camera centre (translation of
     // T_BC fixed, paper section 3.2).

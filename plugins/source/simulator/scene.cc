@@ -9,6 +9,7 @@
 #include <set>
 
 #include "locforge/error.h"
+#include "locforge/params.h"
 
 namespace locforge::sim {
 namespace {
@@ -115,7 +116,7 @@ int Scene::AddMaterial(const Material& m) {
 }
 
 void AddBox(const BoxSpec& box, Scene* scene) {
-  const double yaw = box.yaw_deg * kPi / 180;
+  const double yaw = DegreesToRadians(box.yaw_deg);
   const Eigen::Vector3d ax(std::cos(yaw), std::sin(yaw), 0), ay(-std::sin(yaw), std::cos(yaw), 0);
   const Eigen::Vector3d half = 0.5 * box.size;
   const Eigen::Vector3d normals[4] = {ax, ay, -ax, -ay};
@@ -140,7 +141,7 @@ void AddBox(const BoxSpec& box, Scene* scene) {
 }
 
 void AddPanel(const PanelSpec& p, Scene* scene) {
-  const double yaw = p.yaw_deg * kPi / 180;
+  const double yaw = DegreesToRadians(p.yaw_deg);
   scene->quads.push_back(VerticalQuad(p.center, {std::cos(yaw), std::sin(yaw), 0}, p.width,
                                       p.height, scene->AddMaterial(p.material), p.tile_m));
   scene->quads.back().days = p.days;

@@ -3,9 +3,9 @@
 // 10 sequences, ~18 000 images): 10 cameras (5 at 2.5 Hz, 5 at 1 Hz), the
 // sequence length chosen to give --images images.
 //
-//   locforge_spline_ba_bench [--images N] [--threads T] [--sequences S]
-//                            [--density D] [--max-depth M] [--iterations I] [--verbose 1]
-//                            [--solver auto|sparse_schur|iterative_schur]
+//   locforge_spline_ba_bench [--images N] [--threads T] [--sequences S] [--density D]
+//                            [--max-depth M] [--iterations I] [--verbose true]
+//                            [--solver auto|sparse_schur|iterative_schur]   (--help: every option)
 #include <sys/resource.h>
 
 #include <chrono>
@@ -14,6 +14,7 @@
 #include <cstring>
 #include <string>
 
+#include "locforge/param_cli.h"
 #include "resource_usage.h"
 #include "spline_ba.h"
 #include "synthetic.h"
@@ -23,32 +24,46 @@ namespace {
 using locforge::sfm::CpuSeconds;
 using locforge::sfm::PeakRssMb;
 
+struct Options {
+  int images = 18000, threads = 2, sequences = 10, iterations = 50;
+  double density = 0.5, max_depth = 15;
+  bool verbose = false;
+  std::string solver = "auto";
+
+  static void Declare(locforge::ParamSchema<Options>& s) {
+    s.Add("images", &Options::images, "images of the synthetic problem (10 cameras, 5 at 2.5 Hz, 5 at 1 Hz)").Min(1);
+    s.Add("threads", &Options::threads, "Ceres threads").Min(1);
+    s.Add("sequences", &Options::sequences, "platform trajectories").Min(1);
+    s.Add("density", &Options::density, "landmarks per m^2 of wall").Min(1e-6);
+    s.Add("max_depth", &Options::max_depth, "farthest landmark a camera observes (m)").Min(0);
+    s.Add("iterations", &Options::iterations, "solver iterations").Min(1);
+    s.Add("verbose", &Options::verbose, "Ceres' per-iteration log");
+    s.Add("solver", &Options::solver, "linear solver").Choices({"auto", "sparse_schur", "iterative_schur"});
+  }
+};
+
+const char kUsageHead[] =
+    "usage: locforge_spline_ba_bench [options]\n"
+    "Time and memory of the spline BA on a synthetic problem sized like the simulator's `large`.\n";
+
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace locforge::sfm;
-  int images = 18000, threads = 2, sequences = 10, iterations = 50, verbose = 0;
-  double density = 0.5, max_depth = 15;
-  std::string solver = "auto";
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string a = argv[i];
-    if (a == "--solver") {
-      solver = argv[i + 1];
-      continue;
-    }
-    const double v = std::atof(argv[i + 1]);
-    if (a == "--images") images = static_cast<int>(v);
-    else if (a == "--threads") threads = static_cast<int>(v);
-    else if (a == "--sequences") sequences = static_cast<int>(v);
-    else if (a == "--density") density = v;
-    else if (a == "--max-depth") max_depth = v;
-    else if (a == "--iterations") iterations = static_cast<int>(v);
-    else if (a == "--verbose") verbose = static_cast<int>(v);
-    else {
-      std::fprintf(stderr, "unknown option %s\n", argv[i]);
-      return 2;
-    }
+  if (locforge::WantsHelp(argc, argv)) {
+    std::fputs(locforge::CommandLineHelp<Options>(kUsageHead).c_str(), stdout);
+    return 0;
   }
+  Options o;
+  try {
+    o = locforge::ParseCommandLine<Options>(argc, argv);
+  } catch (const locforge::Error& e) {
+    std::fprintf(stderr, "%s\n%s", e.what(), locforge::CommandLineHelp<Options>(kUsageHead).c_str());
+    return 2;
+  }
+  const int images = o.images, threads = o.threads, sequences = o.sequences, iterations = o.iterations;
+  const double density = o.density, max_depth = o.max_depth;
+  const std::string solver = o.solver;
   SyntheticOptions so;
   so.sequences = sequences;
   so.cameras = 10;
@@ -63,7 +78,7 @@ int main(int argc, char** argv) {
   SplineBAOptions options;
   options.num_threads = threads;
   options.max_iterations = iterations;
-  options.verbose = verbose != 0;
+  options.verbose = o.verbose;
   options.linear_solver = solver;
   if (!options.Check()) {
     std::fprintf(stderr, "%s\n", options.CheckMessage().c_str());

@@ -284,9 +284,9 @@ int main(int argc, char** argv) {
   options.max_iterations = o.iterations;
   options.linear_solver = o.solver;
   if (o.trajectory_sigma_m >= 0) options.trajectory_prior_sigma_translation_m = o.trajectory_sigma_m;
-  if (o.trajectory_sigma_deg >= 0) options.trajectory_prior_sigma_rotation_rad = o.trajectory_sigma_deg * M_PI / 180.0;
+  if (o.trajectory_sigma_deg >= 0) options.trajectory_prior_sigma_rotation_rad = locforge::DegreesToRadians(o.trajectory_sigma_deg);
   if (o.pose_sigma_m > 0) options.prior_sigma_translation_m = o.pose_sigma_m;
-  if (o.pose_sigma_deg > 0) options.prior_sigma_rotation_rad = o.pose_sigma_deg * M_PI / 180.0;
+  if (o.pose_sigma_deg > 0) options.prior_sigma_rotation_rad = locforge::DegreesToRadians(o.pose_sigma_deg);
   options.estimate_time_offsets = o.time_offsets;
   options.align_trajectories = o.align_trajectories;
   if (o.eta > 0) options.iterative_eta = o.eta;
