@@ -61,15 +61,27 @@ def protocols(shared):
     return out
 
 
+def built_model(args, name):
+    """A model the build exports beside its bin/ (build/models/NAME)."""
+    return Path(args.locforge).resolve().parent.parent / "models" / name
+
+
 METHODS = {
-    # name: (graph, [(row label, eval node)], model var or None, model file under the build's models/)
+    # name: (graph, [(row label, eval node)], args -> extra --set values)
     "ours": ("configs/benchmark/sift_densevlad.yaml",
-             [("ours (pnp)", "eval_pnp"), ("ours, image_registrator", "eval_colmap")], None, None),
-    "colmap_classic": ("configs/benchmark/colmap_classic.yaml", [("COLMAP classic", "eval")], None, None),
-    # The learned rows (not compared with COLMAP: they are the default recipe with other features).
-    "xfeat": ("configs/benchmark/xfeat_densevlad.yaml", [("XFeat (pnp)", "eval_pnp")], "xfeat_model", "xfeat.onnx"),
-    "alike_n": ("configs/benchmark/alike_densevlad.yaml", [("ALIKE-n (pnp)", "eval_pnp")], "alike_model",
-                "alike-n.onnx"),
+             [("ours (pnp)", "eval_pnp"), ("ours, image_registrator", "eval_colmap")], lambda a: a.set),
+    "colmap_classic": ("configs/benchmark/colmap_classic.yaml", [("COLMAP classic", "eval")], lambda a: []),
+    # The learned rows: the default recipe with other local features and the authors' plain
+    # mutual NN (ratio 1); not judged against COLMAP (the default is SIFT).
+    "xfeat": ("configs/benchmark/xfeat_densevlad.yaml", [("XFeat (pnp)", "eval_pnp")],
+              lambda a: [f"xfeat_model={built_model(a, 'xfeat.onnx')}"]),
+    "alike_n": ("configs/benchmark/alike_densevlad.yaml", [("ALIKE-n (pnp)", "eval_pnp")],
+                lambda a: [f"alike_model={built_model(a, 'alike-n.onnx')}"]),
+    # R2D2 at the authors' extraction settings (the stage's defaults: pyramid 0.25-1 within
+    # 256-1024 px, thresholds 0.7, top 5000) with the faster2d2 weights ../shared ships.
+    "r2d2": ("configs/benchmark/sift_densevlad.yaml", [("R2D2 faster2d2 (pnp)", "eval_pnp")],
+             lambda a: ["ratio=1", "method=r2d2+densevlad", "local_features={stage: features/r2d2, params: {model: "
+                        f"{a.shared / 'models/r2d2/faster2d2_WASF_N16.onnx'}}}}}"]),
 }
 
 
@@ -159,13 +171,10 @@ def main():
         map_dir = data if spec["map"] in ("REC", "GT") else spec["map"]
         query_dir = data if spec["query"] in ("REC", "GT") else spec["query"]
         for method in methods:
-            graph, rows, model_var, model_file = METHODS[method]
+            graph, rows, extra_sets = METHODS[method]
             ws = args.workspace / name / method
             timing = ws / "suite_run.json"
-            extra = [a for s in (args.set if method == "ours" else []) for a in ("--set", s)]
-            if model_var:  # the build exports the models beside its bin/
-                model = Path(args.locforge).resolve().parent.parent / "models" / model_file
-                extra += ["--set", f"{model_var}={model}"]
+            extra = [a for s in extra_sets(args) for a in ("--set", s)]
             cmd = [str(args.locforge), "run", str(REPO / graph), "--workspace", str(ws),
                    "--threads", str(args.threads), "--set", f"map={map_dir}",
                    "--set", f"query={query_dir}"] + spec["args"] + extra
