@@ -186,6 +186,9 @@ class GraphParser {
   void ApplyVarOverrides(const std::vector<Override>& sets);
   std::vector<GraphVariant> ExpandMatrix();
   void ReadNodes(const YAML::Node& nodes, GraphVariant* variant);
+  void ReadNodeStage(const YAML::Node& stage, NodeSpec* node);
+  void ReadNodeParams(const YAML::Node& params, NodeSpec* node);
+  void ReadNodeInputs(const YAML::Node& inputs, NodeSpec* node);
   void ApplyNodeOverrides(GraphVariant* variant);
 
   // Substitution for the current variant. `base` is set to the base folder
@@ -518,63 +521,72 @@ void GraphParser::ReadNodes(const YAML::Node& nodes, GraphVariant* variant) {
         Fail(At(k->first), "node '" + node.name + "': unknown key '" + key + "'" +
                                Hint(key, kNodeKeys) + "; expected stage, params or inputs");
     }
-    const YAML::Node stage = body["stage"];
-    if (!stage || !stage.IsScalar()) {
-      Fail(node.where, "node '" + node.name + "': 'stage: KIND/NAME' is required");
-    } else {
-      node.stage_where = At(stage);
-      fs::path base;
-      const Value chosen = Substitute(Value{{Unmask(stage.Scalar())}, false}, node.stage_where, &base);
-      node.stage = chosen.scalar();
-      // A variable holding {stage: ID, params: {...}} chooses the stage and
-      // its parameters; the node's own params (read below) override them.
-      for (const ComponentParam& p : chosen.is_component ? chosen.params : std::vector<ComponentParam>{})
-        node.params[p.name] = ParamValue{p.value, p.key_where, p.value_where, BaseDir(base), false};
-    }
-    if (const YAML::Node params = body["params"]) {
-      if (!params.IsMap() && !params.IsNull()) {
-        Fail(At(params), "node '" + node.name + "': 'params' must be a mapping");
-      } else if (params.IsMap()) {
-        for (auto p = params.begin(); p != params.end(); ++p) {
-          RawValue raw;
-          if (!ReadRaw(p->second, "parameter '" + p->first.Scalar() + "'", &raw)) continue;
-          ParamValue pv;
-          pv.key_where = At(p->first);
-          pv.value_where = raw.where;
-          fs::path base;
-          const size_t before = errors_->size();
-          pv.value = Substitute(raw.value, raw.where, &base);
-          pv.broken = errors_->size() != before;
-          pv.base_dir = BaseDir(base);
-          node.params[p->first.Scalar()] = pv;
-        }
-      }
-    }
-    if (const YAML::Node inputs = body["inputs"]) {
-      if (!inputs.IsMap() && !inputs.IsNull()) {
-        Fail(At(inputs), "node '" + node.name + "': 'inputs' must be a mapping port: node.port");
-      } else if (inputs.IsMap()) {
-        for (auto in = inputs.begin(); in != inputs.end(); ++in) {
-          RawValue raw;
-          if (!ReadRaw(in->second, "input '" + in->first.Scalar() + "'", &raw)) continue;
-          InputSpec spec;
-          spec.where = At(in->first);
-          if (raw.value.is_component) {
-            Fail(raw.where, "input '" + in->first.Scalar() + "': expected NODE.PORT or a list of them");
-            continue;
-          }
-          fs::path base;
-          const size_t before = errors_->size();
-          const Value v = Substitute(raw.value, raw.where, &base);
-          const SourceLocation key_where = spec.where;
-          spec = WiresOf(v, raw.where);
-          spec.where = key_where;
-          spec.broken = errors_->size() != before;
-          node.inputs[in->first.Scalar()] = spec;
-        }
-      }
-    }
+    ReadNodeStage(body["stage"], &node);
+    ReadNodeParams(body["params"], &node);
+    ReadNodeInputs(body["inputs"], &node);
     variant->nodes.push_back(std::move(node));
+  }
+}
+
+void GraphParser::ReadNodeStage(const YAML::Node& stage, NodeSpec* node) {
+  if (!stage || !stage.IsScalar()) {
+    Fail(node->where, "node '" + node->name + "': 'stage: KIND/NAME' is required");
+    return;
+  }
+  node->stage_where = At(stage);
+  fs::path base;
+  const Value chosen = Substitute(Value{{Unmask(stage.Scalar())}, false}, node->stage_where, &base);
+  node->stage = chosen.scalar();
+  // A variable holding {stage: ID, params: {...}} chooses the stage and its
+  // parameters; the node's own params (read after) override them.
+  for (const ComponentParam& p : chosen.is_component ? chosen.params : std::vector<ComponentParam>{})
+    node->params[p.name] = ParamValue{p.value, p.key_where, p.value_where, BaseDir(base), false};
+}
+
+void GraphParser::ReadNodeParams(const YAML::Node& params, NodeSpec* node) {
+  if (!params || params.IsNull()) return;
+  if (!params.IsMap()) {
+    Fail(At(params), "node '" + node->name + "': 'params' must be a mapping");
+    return;
+  }
+  for (auto p = params.begin(); p != params.end(); ++p) {
+    RawValue raw;
+    if (!ReadRaw(p->second, "parameter '" + p->first.Scalar() + "'", &raw)) continue;
+    ParamValue pv;
+    pv.key_where = At(p->first);
+    pv.value_where = raw.where;
+    fs::path base;
+    const size_t before = errors_->size();
+    pv.value = Substitute(raw.value, raw.where, &base);
+    pv.broken = errors_->size() != before;
+    pv.base_dir = BaseDir(base);
+    node->params[p->first.Scalar()] = pv;
+  }
+}
+
+void GraphParser::ReadNodeInputs(const YAML::Node& inputs, NodeSpec* node) {
+  if (!inputs || inputs.IsNull()) return;
+  if (!inputs.IsMap()) {
+    Fail(At(inputs), "node '" + node->name + "': 'inputs' must be a mapping port: node.port");
+    return;
+  }
+  for (auto in = inputs.begin(); in != inputs.end(); ++in) {
+    RawValue raw;
+    if (!ReadRaw(in->second, "input '" + in->first.Scalar() + "'", &raw)) continue;
+    InputSpec spec;
+    spec.where = At(in->first);
+    if (raw.value.is_component) {
+      Fail(raw.where, "input '" + in->first.Scalar() + "': expected NODE.PORT or a list of them");
+      continue;
+    }
+    fs::path base;
+    const size_t before = errors_->size();
+    const Value v = Substitute(raw.value, raw.where, &base);
+    const SourceLocation key_where = spec.where;
+    spec = WiresOf(v, raw.where);
+    spec.where = key_where;
+    spec.broken = errors_->size() != before;
+    node->inputs[in->first.Scalar()] = spec;
   }
 }
 
