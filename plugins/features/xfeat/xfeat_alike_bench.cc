@@ -45,18 +45,11 @@ struct BenchOptions {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (locforge::WantsHelp(argc, argv)) {
-    std::cout << locforge::CommandLineHelp<BenchOptions>(
-        "locforge_xfeat_alike_bench: seconds per image of XFeat, ALIKE and SIFT at 1 and 2 threads\n");
-    return 0;
-  }
   BenchOptions b;
-  try {
-    b = locforge::ParseCommandLine<BenchOptions>(argc, argv);
-  } catch (const std::exception& e) {
-    std::cerr << e.what() << "\n";
-    return 2;
-  }
+  if (const int code = locforge::ParseToolOptions(
+          argc, argv, "locforge_xfeat_alike_bench: seconds per image of XFeat, ALIKE and SIFT at 1 and 2 threads\n", &b);
+      code >= 0)
+    return code;
   const std::string image = b.image, models = b.models, only = b.only;
   const int repeat = b.repeat;
   const cv::Mat bgr = cv::imread(image, cv::IMREAD_COLOR);

@@ -6,6 +6,7 @@
 #define LOCFORGE_PARAM_CLI_H_
 
 #include <algorithm>
+#include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
@@ -58,6 +59,26 @@ Options ParseCommandLine(int argc, char** argv) {
     given.emplace_back(a, value);
   }
   return ParamSchema<Options>().Parse(given);
+}
+
+// A tool's main in one call: --help prints the help (exit code 0), a bad
+// option prints the reason and the help on stderr (exit code 2); otherwise
+// *options is filled and the result is -1 (go on).
+//   Options o;
+//   if (const int code = locforge::ParseToolOptions(argc, argv, kUsage, &o); code >= 0) return code;
+template <typename Options>
+int ParseToolOptions(int argc, char** argv, const std::string& head, Options* options) {
+  if (WantsHelp(argc, argv)) {
+    std::fputs(CommandLineHelp<Options>(head).c_str(), stdout);
+    return 0;
+  }
+  try {
+    *options = ParseCommandLine<Options>(argc, argv);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "%s\n%s", e.what(), CommandLineHelp<Options>(head).c_str());
+    return 2;
+  }
+  return -1;
 }
 
 }  // namespace locforge

@@ -1,5 +1,7 @@
 #include "locforge/params.h"
 
+#include "locforge/param_cli.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -25,6 +27,60 @@ void ExpectParamError(F&& f, const std::vector<std::string>& fragments) {
       EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
           << "'" << fragment << "' not in: " << e.what();
   }
+}
+
+// A library's options declared once, bound in place by a stage's.
+struct GroupLibraryOptions {
+  double reach_m = 1;
+  double turn_rad = DegreesToRadians(10);
+  template <typename Schema>
+  static void Declare(Schema& s) {
+    s.Add("reach_m", &GroupLibraryOptions::reach_m, "How far (m)").Min(0);
+    s.AddDegrees("turn_deg", &GroupLibraryOptions::turn_rad, "How much it turns (deg)").Range(0, 180);
+  }
+};
+struct GroupStageOptions {
+  int rounds = 2;
+  GroupLibraryOptions library;
+  static void Declare(ParamSchema<GroupStageOptions>& s) {
+    s.Add("rounds", &GroupStageOptions::rounds, "Rounds").Min(1);
+    s.AddGroup(&GroupStageOptions::library);
+  }
+};
+
+TEST(ParamSchema, GroupIsTheLibrarysOwnDeclarationBoundInPlace) {
+  const auto stage = ParamSchema<GroupStageOptions>().Decls();
+  const auto library = ParamSchema<GroupLibraryOptions>().Decls();
+  ASSERT_EQ(stage.size(), 3u);
+  EXPECT_EQ(stage[0].name, "rounds");
+  for (size_t i = 0; i < library.size(); ++i) {
+    EXPECT_EQ(stage[i + 1].name, library[i].name);
+    EXPECT_EQ(stage[i + 1].default_value, library[i].default_value);
+    EXPECT_EQ(stage[i + 1].doc, library[i].doc);
+  }
+  EXPECT_EQ(stage[2].default_value, "10");
+  const GroupStageOptions o = ParamSchema<GroupStageOptions>().Parse({{"turn_deg", "90"}, {"reach_m", "3"}});
+  EXPECT_EQ(o.rounds, 2);
+  EXPECT_EQ(o.library.reach_m, 3);
+  EXPECT_EQ(o.library.turn_rad, DegreesToRadians(90));
+  EXPECT_EQ(ParamSchema<GroupStageOptions>().Parse({}).library.turn_rad, DegreesToRadians(10));
+  ExpectParamError([] { ParamSchema<GroupStageOptions>().Parse({{"turn_deg", "200"}}); }, {"turn_deg", "180"});
+}
+
+TEST(ParseToolOptions, HelpBadOptionAndValues) {
+  auto parse = [](std::vector<std::string> args, GroupStageOptions* o) {
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    return ParseToolOptions(static_cast<int>(argv.size()), argv.data(), "usage: tool\n", o);
+  };
+  GroupStageOptions o;
+  EXPECT_EQ(parse({"tool", "--rounds", "5", "--turn-deg=45"}, &o), -1);
+  EXPECT_EQ(o.rounds, 5);
+  EXPECT_EQ(o.library.turn_rad, DegreesToRadians(45));
+  EXPECT_EQ(parse({"tool", "--help"}, &o), 0);
+  EXPECT_EQ(parse({"tool", "--rounds", "x"}, &o), 2);
+  EXPECT_EQ(parse({"tool", "--round", "3"}, &o), 2);
+  EXPECT_EQ(parse({"tool", "--rounds"}, &o), 2);
 }
 
 TEST(FormatDouble, ShortestRoundTrip) {

@@ -50,17 +50,8 @@ const char kUsageHead[] =
 
 int main(int argc, char** argv) {
   using namespace locforge::sfm;
-  if (locforge::WantsHelp(argc, argv)) {
-    std::fputs(locforge::CommandLineHelp<Options>(kUsageHead).c_str(), stdout);
-    return 0;
-  }
   Options o;
-  try {
-    o = locforge::ParseCommandLine<Options>(argc, argv);
-  } catch (const locforge::Error& e) {
-    std::fprintf(stderr, "%s\n%s", e.what(), locforge::CommandLineHelp<Options>(kUsageHead).c_str());
-    return 2;
-  }
+  if (const int code = locforge::ParseToolOptions(argc, argv, kUsageHead, &o); code >= 0) return code;
   const int images = o.images, threads = o.threads, sequences = o.sequences, iterations = o.iterations;
   const double density = o.density, max_depth = o.max_depth;
   const std::string solver = o.solver;

@@ -112,17 +112,8 @@ const char kUsageHead[] =
     "Time, memory and accuracy of the spline BA on a recording's geometry with synthetic landmarks.\n";
 
 int main(int argc, char** argv) {
-  if (locforge::WantsHelp(argc, argv)) {
-    std::fputs(locforge::CommandLineHelp<Options>(kUsageHead).c_str(), stdout);
-    return 0;
-  }
   Options o;
-  try {
-    o = locforge::ParseCommandLine<Options>(argc, argv);
-  } catch (const locforge::Error& e) {
-    std::fprintf(stderr, "%s\n%s", e.what(), locforge::CommandLineHelp<Options>(kUsageHead).c_str());
-    return 2;
-  }
+  if (const int code = locforge::ParseToolOptions(argc, argv, kUsageHead, &o); code >= 0) return code;
   const auto t_start = std::chrono::steady_clock::now();
   const kp::Sensors sensors = kp::ReadSensors(o.recording + "/sensors/sensors.txt");
   const kp::Rigs rigs = kp::ReadRigs(o.recording + "/sensors/rigs.txt");
