@@ -129,13 +129,7 @@ LinearSystem Linearize(const GicpInputs& in, const Eigen::Isometry3d& T, const F
     }
   }
   LinearSystem total;
-  for (const LinearSystem& s : blocks) {
-    total.H += s.H;
-    total.b += s.b;
-    total.cost += s.cost;
-    total.inliers += s.inliers;
-    total.walked += s.walked;
-  }
+  for (const LinearSystem& s : blocks) total += s;
   total.H.bottomLeftCorner<3, 3>() = total.H.topRightCorner<3, 3>().transpose();
   return total;
 }

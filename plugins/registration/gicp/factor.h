@@ -49,6 +49,14 @@ struct LinearSystem {
   double cost = 0;       // sum of rho(e) over inliers
   uint64_t inliers = 0;
   uint64_t walked = 0;   // correspondence searches answered by the neighbour walk
+  LinearSystem& operator+=(const LinearSystem& o) {
+    H += o.H;
+    b += o.b;
+    cost += o.cost;
+    inliers += o.inliers;
+    walked += o.walked;
+    return *this;
+  }
 };
 
 // Deterministic for any thread count: points are summed in fixed blocks.

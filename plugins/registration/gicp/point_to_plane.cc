@@ -30,12 +30,7 @@ LinearSystem PointToPlaneSystem(const Points& source, const Points& target,
     }
   }
   LinearSystem total;
-  for (const LinearSystem& s : blocks) {
-    total.H += s.H;
-    total.b += s.b;
-    total.cost += s.cost;
-    total.inliers += s.inliers;
-  }
+  for (const LinearSystem& s : blocks) total += s;
   return total;
 }
 
