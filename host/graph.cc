@@ -539,7 +539,8 @@ void GraphParser::ReadNodeStage(const YAML::Node& stage, NodeSpec* node) {
   node->stage = chosen.scalar();
   // A variable holding {stage: ID, params: {...}} chooses the stage and its
   // parameters; the node's own params (read after) override them.
-  for (const ComponentParam& p : chosen.is_component ? chosen.params : std::vector<ComponentParam>{})
+  if (!chosen.is_component) return;
+  for (const ComponentParam& p : chosen.params)
     node->params[p.name] = ParamValue{p.value, p.key_where, p.value_where, BaseDir(base), false};
 }
 

@@ -17,6 +17,7 @@ default that loses to COLMAP classic anywhere is not a default.
 import argparse
 import csv
 import json
+import math
 import os
 import resource
 import shutil
@@ -61,6 +62,11 @@ def protocols(shared):
     return out
 
 
+def r2d2_model(args):
+    """The R2D2 checkpoint ../shared holds (faster2d2; r2d2_WASF_N16 is not there)."""
+    return args.shared / "models/r2d2/faster2d2_WASF_N16.onnx"
+
+
 def built_model(args, name):
     """A model the build exports beside its bin/ (build/models/NAME)."""
     return Path(args.locforge).resolve().parent.parent / "models" / name
@@ -80,8 +86,8 @@ METHODS = {
     # R2D2 at the authors' extraction settings (the stage's defaults: pyramid 0.25-1 within
     # 256-1024 px, thresholds 0.7, top 5000) with the faster2d2 weights ../shared ships.
     "r2d2": ("configs/benchmark/sift_densevlad.yaml", [("R2D2 faster2d2 (pnp)", "eval_pnp")],
-             lambda a: ["ratio=1", "method=r2d2+densevlad", "local_features={stage: features/r2d2, params: {model: "
-                        f"{a.shared / 'models/r2d2/faster2d2_WASF_N16.onnx'}}}}}"]),
+             lambda a: ["ratio=1", "method=r2d2+densevlad",
+                        f"local_features={{stage: features/r2d2, params: {{model: {r2d2_model(a)}}}}}"]),
 }
 
 
@@ -253,7 +259,7 @@ def write_tables(root, results):
                 r["protocol"], r["method"], str(r["queries"]), str(r["localized"]), fmt_recall(paper),
                 fmt_recall(obj) if obj else "", f"{1000 * r['median_m']:.2f} mm", f"{r['median_deg']:.4f} deg",
                 f"{r['cpu_s']:.0f}" if timed else "(same run)", f"{r['wall_s']:.0f}" if timed else "",
-                f"{r['feat_cpu']:.2f}, {r['feat_wall']:.2f}" if timed and r["feat_cpu"] == r["feat_cpu"] else "",
+                f"{r['feat_cpu']:.2f}, {r['feat_wall']:.2f}" if timed and not math.isnan(r["feat_cpu"]) else "",
                 ratio, against]) + " |")
             w.writerow([r["protocol"], r["method"], r["queries"], r["localized"]] + paper +
                        (obj if obj else ["", "", ""]) + [r["median_m"], r["median_deg"],

@@ -23,10 +23,6 @@ template <typename Schema, typename Options>
 ParamBuilder AddSecondsPerUnit(Schema& s, double Options::*field) {
   return s.Add("seconds_per_unit", field, kSecondsPerUnitDoc).Range(1e-12, 1);
 }
-template <typename Options, typename M>
-ParamBuilder AddSecondsPerUnit(ParamSchema<Options>& s, M Options::*outer, double M::*inner) {
-  return s.Add("seconds_per_unit", outer, inner, kSecondsPerUnitDoc).Range(1e-12, 1);
-}
 
 }  // namespace locforge
 

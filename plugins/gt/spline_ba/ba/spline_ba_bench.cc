@@ -52,25 +52,22 @@ int main(int argc, char** argv) {
   using namespace locforge::sfm;
   Options o;
   if (const int code = locforge::ParseToolOptions(argc, argv, kUsageHead, &o); code >= 0) return code;
-  const int images = o.images, threads = o.threads, sequences = o.sequences, iterations = o.iterations;
-  const double density = o.density, max_depth = o.max_depth;
-  const std::string solver = o.solver;
   SyntheticOptions so;
-  so.sequences = sequences;
+  so.sequences = o.sequences;
   so.cameras = 10;
-  so.duration_s = images / (sequences * (5 * 2.5 + 5 * 1.0));
-  so.points_per_m2 = density;
-  so.max_depth_m = max_depth;
+  so.duration_s = o.images / (o.sequences * (5 * 2.5 + 5 * 1.0));
+  so.points_per_m2 = o.density;
+  so.max_depth_m = o.max_depth;
   so.min_track_length = 3;
   const auto t0 = std::chrono::steady_clock::now();
   SyntheticScene scene = MakeSyntheticScene(so);
   const double gen_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double rss_scene = PeakRssMb();
   SplineBAOptions options;
-  options.num_threads = threads;
-  options.max_iterations = iterations;
+  options.num_threads = o.threads;
+  options.max_iterations = o.iterations;
   options.verbose = o.verbose;
-  options.linear_solver = solver;
+  options.linear_solver = o.solver;
   if (!options.Check()) {
     std::fprintf(stderr, "%s\n", options.CheckMessage().c_str());
     return 2;
@@ -83,7 +80,7 @@ int main(int argc, char** argv) {
   std::printf("| images | points | observations | solver | threads | scene s | BA wall s | BA CPU s | iterations | reproj px (initial -> final) | "
               "pose RMS cm / deg | peak RSS MB (after scene -> after BA) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::printf("| %zu | %zu | %zu | %s | %d | %.1f | %.1f | %.1f | %d%s | %.2f -> %.3f | %.2f / %.3f | %.0f -> %.0f |\n",
-              problem.images.size(), problem.points.size(), problem.observations.size(), solver.c_str(), threads, gen_s, r.seconds, ba_cpu,
+              problem.images.size(), problem.points.size(), problem.observations.size(), o.solver.c_str(), o.threads, gen_s, r.seconds, ba_cpu,
               r.iterations, r.converged ? "" : " (limit)", r.initial_mean_reproj_px, r.final_mean_reproj_px,
               100 * e.position_rms_m, e.rotation_rms_deg, rss_scene, PeakRssMb());
   std::printf("solver: %s\n", r.message.c_str());
