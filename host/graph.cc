@@ -536,6 +536,11 @@ void GraphParser::ReadNodeStage(const YAML::Node& stage, NodeSpec* node) {
   node->stage_where = At(stage);
   fs::path base;
   const Value chosen = Substitute(Value{{Unmask(stage.Scalar())}, false}, node->stage_where, &base);
+  if (chosen.is_list) {
+    Fail(node->stage_where, "node '" + node->name + "': 'stage' is a list; expected KIND/NAME or a " +
+                                "{stage: KIND/NAME, params: {...}} variable");
+    return;
+  }
   node->stage = chosen.scalar();
   // A variable holding {stage: ID, params: {...}} chooses the stage and its
   // parameters; the node's own params (read after) override them.

@@ -485,6 +485,13 @@ nodes:
   EXPECT_EQ(b.params.count("count"), 0u);
 }
 
+TEST(GraphParse, NodeStageFromAListVariableIsRefused) {
+  const Parsed p = Parse("locforge: 1\nvars:\n  s: [source/images, features/sift]\nnodes:\n  a: {stage: \"${s}\"}\n");
+  EXPECT_FALSE(p.ok);
+  EXPECT_NE(p.Text().find("/graphs/g.yaml:5:"), std::string::npos) << p.Text();
+  EXPECT_NE(p.Text().find("'stage' is a list"), std::string::npos) << p.Text();
+}
+
 TEST(GraphParse, RequiredVariableSaysHowToGiveIt) {
   const std::string graph = R"(locforge: 1
 vars:
