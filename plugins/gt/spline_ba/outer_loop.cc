@@ -241,10 +241,12 @@ OuterLoop::RoundResult OuterLoop::RunRound(int round, double threshold) {
                      "round " + std::to_string(round) + ": triangulation gave no point seen twice");
   sfm::SplineBAOptions ba = o_.ba;
   ba.num_threads = ctx_.threads();
+  ba.cancelled = [this] { return ctx_.cancelled(); };
   if (!ba.Check()) throw ParamError("spline bundle adjustment options: " + ba.CheckMessage());
   const auto t_ba = Clock::now();
   const sfm::SplineBAResult result = sfm::RunSplineBA(ba, &problem);
   const double ba_s = Since(t_ba);
+  if (result.cancelled) throw Cancelled();
   if (!result.usable)
     throw Error("round " + std::to_string(round) + ": spline bundle adjustment failed: " + result.message);
   // Write the refined values back.

@@ -615,6 +615,18 @@ ceres::Solver::Options SolverOptions(const SplineBAOptions& options,
   return solver;
 }
 
+// Stops the minimiser when the caller's cancellation flag is raised.
+class CancellationCallback : public ceres::IterationCallback {
+ public:
+  explicit CancellationCallback(const std::function<bool()>& cancelled) : cancelled_(cancelled) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    return cancelled_() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const std::function<bool()>& cancelled_;
+};
+
 // Builds the problem: residuals (1) to (3) and the kinematics, then the
 // manifolds and what is held; false when no observation is in front of its camera.
 bool BuildProblem(Assembly& a, bool splines) {
@@ -682,8 +694,17 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
   }
   const std::shared_ptr<ceres::ParameterBlockOrdering> ordering = SchurOrdering(a);
   result.num_parameters = FreeParameters(a.ceres);
+  ceres::Solver::Options solver = SolverOptions(options, ordering, problem->images.size());
+  std::optional<CancellationCallback> cancellation;
+  if (options.cancelled) solver.callbacks.push_back(&cancellation.emplace(options.cancelled));
   ceres::Solver::Summary summary;
-  ceres::Solve(SolverOptions(options, ordering, problem->images.size()), &a.ceres, &summary);
+  ceres::Solve(solver, &a.ceres, &summary);
+  if (cancellation && summary.termination_type == ceres::USER_FAILURE) {
+    result.cancelled = true;
+    result.message = "cancelled";
+    result.seconds = elapsed();
+    return result;
+  }
   ReadBack(summary, x, splines, problem, &result);
   result.seconds = elapsed();
   return result;

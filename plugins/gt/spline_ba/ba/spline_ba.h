@@ -22,6 +22,7 @@
 #define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SPLINE_BA_H_
 
 #include <Eigen/Core>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -185,6 +186,9 @@ struct SplineBAOptions {
   // Ceres threads of this solve only (no process-wide state is touched).
   int num_threads = 1;
   bool verbose = false;  // Ceres per-iteration log to stdout
+  // Polled after every Ceres iteration: true stops the solve (result.cancelled,
+  // nothing written back). A long solve must answer Ctrl-C / SIGTERM.
+  std::function<bool()> cancelled;
 
   bool Check() const { return CheckMessage().empty(); }
   // "" or the first invalid field, or combination, with the reason.
@@ -194,6 +198,7 @@ struct SplineBAOptions {
 struct SplineBAResult {
   bool converged = false;  // Ceres reported convergence (not just the iteration limit)
   bool usable = false;     // Ceres produced a usable solution (the problem was written back)
+  bool cancelled = false;  // options.cancelled stopped the solve
   int iterations = 0;
   double initial_cost = 0, final_cost = 0;  // Ceres costs (robustified, 0.5 * sum)
   double initial_mean_reproj_px = 0, final_mean_reproj_px = 0;  // plain (non-robust) mean

@@ -320,6 +320,30 @@ TEST(SplineBA, SameBitsWhateverTheHeapLayout) {
   }
 }
 
+// A raised cancellation flag stops the solve after the iteration it is seen
+// in, and leaves the problem as it was (nothing half-adjusted written back).
+TEST(SplineBA, CancellationStopsTheSolveAndWritesNothingBack) {
+  const SyntheticScene& scene = Scene();
+  SplineBAOptions options = Options();
+  int polls = 0;
+  options.cancelled = [&polls] { return ++polls > 3; };
+  BAProblem problem = scene.initial;
+  const SplineBAResult r = RunSplineBA(options, &problem);
+  EXPECT_TRUE(r.cancelled);
+  EXPECT_FALSE(r.usable);
+  EXPECT_EQ(r.message, "cancelled");
+  EXPECT_EQ(polls, 4) << "the solver kept iterating after the flag was raised";
+  for (size_t i = 0; i < problem.images.size(); ++i) {
+    const Pose& before = scene.initial.images[i].T_world_camera;
+    const Pose& after = problem.images[i].T_world_camera;
+    ASSERT_TRUE(before.t == after.t && before.q.coeffs() == after.q.coeffs()) << "image " << i;
+  }
+  // Never raised: the same options solve to the end.
+  options.cancelled = [] { return false; };
+  problem = scene.initial;
+  EXPECT_TRUE(RunSplineBA(options, &problem).usable);
+}
+
 TEST(SplineBA, BadOptionsAreRejectedWithAMessage) {
   SplineBAOptions o;
   EXPECT_TRUE(o.Check());
