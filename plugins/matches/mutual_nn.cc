@@ -41,7 +41,9 @@ class MutualNnStage : public PerItemStage<MutualNnOptions> {
             "Nearest-neighbour descriptor matching per pair (mutual check, ratio, distance)",
             {kFeaturesPort, kQueryFeaturesPort, {"pairs", "kapture.pairs", "image pairs to match"}},
             {kMatchesOut}};
-    meta.version = "1.2.0";  // 1.1.0: AVX2 scan; 1.2.0: GEMM-shaped AVX2 tiles (scores may differ in the last float bits)
+    // 1.1.0: AVX2 scan; 1.2.0: GEMM-shaped AVX2 tiles (scores may differ in the last float bits);
+    // 1.3.0: uint8 descriptors by exact integer dot products (VNNI where the processor has it)
+    meta.version = "1.3.0";
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -58,8 +60,11 @@ class MutualNnStage : public PerItemStage<MutualNnOptions> {
     nn.cross_check = options().cross_check;
     nn.ratio = options().ratio;
     nn.max_distance = options().max_distance;
-    const auto matches = MatchDescriptors(NormalisedDescriptors(fa.Descriptors(a)),
-                                          NormalisedDescriptors(fb.Descriptors(b)), nn);
+    const kapture::FeatureArray &da = fa.Descriptors(a), &db = fb.Descriptors(b);
+    std::optional<ByteDescriptors> bytes_a = ByteDescriptorsOf(da), bytes_b = ByteDescriptorsOf(db);
+    const auto matches = bytes_a && bytes_b
+                             ? MatchDescriptors(*bytes_a, *bytes_b, nn)
+                             : MatchDescriptors(NormalisedDescriptors(da), NormalisedDescriptors(db), nn);
     if (static_cast<int>(matches.size()) < std::max(1, options().min_matches)) return;
     k::WriteMatches(ctx.output_dir(), f.map.type, a, b, matches);
   }

@@ -8,6 +8,7 @@
 
 #include "locforge/error.h"
 #include "nearest_avx2.h"
+#include "nearest_vnni.h"
 
 namespace locforge::matching {
 
@@ -20,6 +21,22 @@ DescriptorMatrix NormalisedDescriptors(const kapture::FeatureArray& d) {
     if (n > 0) m.row(r) /= n;
   }
   return m;
+}
+
+std::optional<ByteDescriptors> ByteDescriptorsOf(const kapture::FeatureArray& d) {
+  if (d.dtype != kapture::DType::kUint8) return std::nullopt;
+  ByteDescriptors out;
+  out.rows = d.rows;
+  out.dims = d.dsize;
+  const uint8_t* values = d.data<uint8_t>();
+  out.values.assign(values, values + d.rows * d.dsize);
+  out.inv_norm.resize(d.rows, 0.f);
+  for (int64_t r = 0; r < d.rows; ++r) {
+    int64_t squares = 0;
+    for (int64_t c = 0; c < d.dsize; ++c) squares += int64_t{values[r * d.dsize + c]} * values[r * d.dsize + c];
+    if (squares > 0) out.inv_norm[r] = static_cast<float>(1.0 / std::sqrt(static_cast<double>(squares)));
+  }
+  return out;
 }
 
 namespace {
@@ -43,38 +60,117 @@ void ScanNearestEigen(const DescriptorMatrix& a, const DescriptorMatrix& b, int*
   }
 }
 
+// Byte rows as float values, unnormalised (their dot products exact up to
+// vnni::kMaxExactFloatDims dimensions).
+DescriptorMatrix ByteValues(const ByteDescriptors& d) {
+  return Eigen::Map<const Eigen::Matrix<uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+             d.values.data(), d.rows, d.dims).cast<float>();
+}
+
+// The portable byte scan: exact products of 1024-row blocks of a against b
+// (Eigen, in float up to vnni::kMaxExactFloatDims dimensions, else int32),
+// each made a similarity by vnni::ByteSimilarity.
+template <class Scalar>
+void ScanNearestBytes(const ByteDescriptors& a, const ByteDescriptors& b, int* best, float* best_sim,
+                      float* second_sim, int* col_best, float* col_best_sim) {
+  using Rows = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using ByteRows = Eigen::Matrix<uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const int64_t n = a.rows, m = b.rows, dims = a.dims;
+  const Rows bs = Eigen::Map<const ByteRows>(b.values.data(), m, dims).template cast<Scalar>();
+  constexpr int64_t kBlock = 1024;
+  Rows dot;
+  for (int64_t start = 0; start < n; start += kBlock) {
+    const int64_t rows = std::min(kBlock, n - start);
+    const Rows as = Eigen::Map<const ByteRows>(a.values.data() + start * dims, rows, dims).template cast<Scalar>();
+    dot.noalias() = as * bs.transpose();
+    for (int64_t r = 0; r < rows; ++r) {
+      const int64_t i = start + r;
+      for (int64_t j = 0; j < m; ++j) {
+        const float s = vnni::ByteSimilarity(static_cast<int32_t>(dot(r, j)), a.inv_norm[i], b.inv_norm[j]);
+        avx2::UpdateRow(i, j, s, best, best_sim, second_sim);
+        avx2::UpdateColumn(i, j, s, col_best, col_best_sim);
+      }
+    }
+  }
+}
+
+// The running results of a scan over n rows and m columns.
+struct Nearest {
+  static constexpr float kNone = -std::numeric_limits<float>::infinity();
+  Nearest(int64_t n, int64_t m)
+      : best(n, -1), best_sim(n, kNone), second_sim(n, kNone), col_best(m, -1), col_best_sim(m, kNone) {}
+  std::vector<int> best;
+  std::vector<float> best_sim, second_sim;
+  std::vector<int> col_best;
+  std::vector<float> col_best_sim;
+};
+
+// The mutual check, distance and ratio tests on a finished scan.
+std::vector<kapture::Match> SelectMatches(const Nearest& s, const NnOptions& o) {
+  std::vector<kapture::Match> out;
+  const int64_t n = static_cast<int64_t>(s.best.size()), m = static_cast<int64_t>(s.col_best.size());
+  auto distance = [](float sim) { return std::sqrt(std::max(0.0, 2.0 - 2.0 * sim)); };
+  for (int64_t i = 0; i < n; ++i) {
+    const int j = s.best[i];
+    if (j < 0) continue;
+    if (o.cross_check && s.col_best[j] != i) continue;
+    const double d1 = distance(s.best_sim[i]);
+    if (d1 > o.max_distance) continue;
+    if (o.ratio < 1.0 && m > 1 && !(d1 < o.ratio * distance(s.second_sim[i]))) continue;
+    out.push_back({static_cast<double>(i), static_cast<double>(j), s.best_sim[i]});
+  }
+  return out;
+}
+
+void CheckSameSize(int64_t dims_a, int64_t dims_b) {
+  if (dims_a != dims_b)
+    throw InputError("descriptor sizes differ: " + std::to_string(dims_a) + " vs " + std::to_string(dims_b));
+}
+
 }  // namespace
 
 std::vector<kapture::Match> MatchDescriptors(const DescriptorMatrix& a, const DescriptorMatrix& b,
                                              const NnOptions& o) {
-  std::vector<kapture::Match> out;
   const int64_t n = a.rows(), m = b.rows();
-  if (n == 0 || m == 0) return out;
-  if (a.cols() != b.cols())
-    throw InputError("descriptor sizes differ: " + std::to_string(a.cols()) + " vs " +
-                     std::to_string(b.cols()));
-  constexpr float kNone = -std::numeric_limits<float>::infinity();
-  std::vector<int> best(n, -1);
-  std::vector<float> best_sim(n, kNone), second_sim(n, kNone);
-  std::vector<int> col_best(m, -1);
-  std::vector<float> col_best_sim(m, kNone);
+  if (n == 0 || m == 0) return {};
+  CheckSameSize(a.cols(), b.cols());
+  Nearest s(n, m);
   static const bool kAvx2 = avx2::Supported();
-  if (o.use_avx2 && kAvx2 && a.cols() % 8 == 0)
-    avx2::ScanNearest(a.data(), n, b.data(), m, a.cols(), best.data(), best_sim.data(), second_sim.data(),
-                      col_best.data(), col_best_sim.data());
+  if (o.use_simd && kAvx2 && a.cols() % 8 == 0)
+    avx2::ScanNearest(a.data(), n, b.data(), m, a.cols(), s.best.data(), s.best_sim.data(), s.second_sim.data(),
+                      s.col_best.data(), s.col_best_sim.data());
   else
-    ScanNearestEigen(a, b, best.data(), best_sim.data(), second_sim.data(), col_best.data(), col_best_sim.data());
-  auto distance = [](float s) { return std::sqrt(std::max(0.0, 2.0 - 2.0 * s)); };
-  for (int64_t i = 0; i < n; ++i) {
-    const int j = best[i];
-    if (j < 0) continue;
-    if (o.cross_check && col_best[j] != i) continue;
-    const double d1 = distance(best_sim[i]);
-    if (d1 > o.max_distance) continue;
-    if (o.ratio < 1.0 && m > 1 && !(d1 < o.ratio * distance(second_sim[i]))) continue;
-    out.push_back({static_cast<double>(i), static_cast<double>(j), best_sim[i]});
+    ScanNearestEigen(a, b, s.best.data(), s.best_sim.data(), s.second_sim.data(), s.col_best.data(),
+                     s.col_best_sim.data());
+  return SelectMatches(s, o);
+}
+
+std::vector<kapture::Match> MatchDescriptors(const ByteDescriptors& a, const ByteDescriptors& b,
+                                             const NnOptions& o) {
+  const int64_t n = a.rows, m = b.rows;
+  if (n == 0 || m == 0) return {};
+  CheckSameSize(a.dims, b.dims);
+  if (a.dims > vnni::kMaxDims)
+    throw InputError("byte descriptors of " + std::to_string(a.dims) + " dimensions: at most " +
+                     std::to_string(vnni::kMaxDims) + " are matched exactly");
+  Nearest s(n, m);
+  static const bool kVnni = vnni::Supported(), kAvx2 = avx2::Supported();
+  const bool exact_in_float = a.dims <= vnni::kMaxExactFloatDims;
+  int *best = s.best.data(), *col_best = s.col_best.data();
+  float *best_sim = s.best_sim.data(), *second_sim = s.second_sim.data(), *col_best_sim = s.col_best_sim.data();
+  if (o.use_simd && kVnni && a.dims % 4 == 0) {
+    vnni::ScanNearest(a.values.data(), n, a.inv_norm.data(), b.values.data(), m, b.inv_norm.data(), a.dims, best,
+                      best_sim, second_sim, col_best, col_best_sim);
+  } else if (o.use_simd && kAvx2 && a.dims % 8 == 0 && exact_in_float) {
+    const DescriptorMatrix fa = ByteValues(a), fb = ByteValues(b);
+    avx2::ScanNearestScaled(fa.data(), n, a.inv_norm.data(), fb.data(), m, b.inv_norm.data(), a.dims, best,
+                            best_sim, second_sim, col_best, col_best_sim);
+  } else if (exact_in_float) {
+    ScanNearestBytes<float>(a, b, best, best_sim, second_sim, col_best, col_best_sim);
+  } else {
+    ScanNearestBytes<int32_t>(a, b, best, best_sim, second_sim, col_best, col_best_sim);
   }
-  return out;
+  return SelectMatches(s, o);
 }
 
 namespace {

@@ -1,12 +1,15 @@
 // Descriptor matching and two-view verification, free of any I/O.
 //
-// Descriptors are compared as L2-normalised float vectors (uint8 SIFT rows
-// are converted and normalised first), so distances are in [0, 2] whatever
-// the stored dtype, and a match's score is the cosine similarity.
+// Descriptors are compared by cosine similarity, so distances of unit
+// vectors are in [0, 2] whatever the stored dtype: float rows L2-normalised
+// (DescriptorMatrix), byte rows (SIFT's uint8) by their exact integer dot
+// products and inverse norms (ByteDescriptors), the same bits on any processor.
 #ifndef LOCFORGE_PLUGINS_COMMON_MATCHING_MATCHING_H_
 #define LOCFORGE_PLUGINS_COMMON_MATCHING_MATCHING_H_
 
 #include <Eigen/Core>
+#include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,16 +24,30 @@ using DescriptorMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Ei
 // Any numeric descriptor array as rows of unit L2 norm (zero rows stay zero).
 DescriptorMatrix NormalisedDescriptors(const kapture::FeatureArray& descriptors);
 
+// Byte rows as stored (no conversion), with 1 / L2 norm of each (0 for a zero row).
+struct ByteDescriptors {
+  int64_t rows = 0, dims = 0;
+  std::vector<uint8_t> values;  // rows x dims, row-major
+  std::vector<float> inv_norm;
+};
+
+// uint8 descriptor arrays as ByteDescriptors; nullopt for any other dtype.
+std::optional<ByteDescriptors> ByteDescriptorsOf(const kapture::FeatureArray& descriptors);
+
 struct NnOptions {
   bool cross_check = true;   // keep i<->j only when each is the other's nearest
   double ratio = 1.0;        // Lowe's ratio d1/d2 must be below this (1: off)
   double max_distance = 2.0; // L2 distance of unit descriptors must be <= this (2: off)
-  bool use_avx2 = true;      // AVX2 + FMA scan where the processor has them (false: the portable Eigen scan)
+  bool use_simd = true;      // the AVX2 (float) / VNNI (bytes) scan where the processor has it (false: the portable scan)
 };
 
 // Nearest neighbours of the rows of `a` among the rows of `b`; score = cosine
 // similarity. Sorted by index in `a`. Memory O(1024 x rows(b)).
 std::vector<kapture::Match> MatchDescriptors(const DescriptorMatrix& a, const DescriptorMatrix& b,
+                                             const NnOptions& options);
+// The same for byte rows: similarities from exact integer dot products
+// (nearest_vnni.h), so the SIMD and portable scans agree to the bit.
+std::vector<kapture::Match> MatchDescriptors(const ByteDescriptors& a, const ByteDescriptors& b,
                                              const NnOptions& options);
 
 // ------------------------------------------------------------ verification

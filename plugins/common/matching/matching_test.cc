@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <map>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -17,6 +18,7 @@
 #include "locforge/testkit.h"
 #include "matching.h"
 #include "nearest_avx2.h"
+#include "nearest_vnni.h"
 #include "sift.h"
 #include "testing.h"
 
@@ -96,7 +98,7 @@ TEST(MutualNn, Avx2AndPortableScansAgree) {
     NnOptions fast, portable;
     fast.cross_check = portable.cross_check = false;  // every row's nearest: compares the whole scan
     fast.ratio = portable.ratio = 0.999;              // needs the second nearest too
-    portable.use_avx2 = false;
+    portable.use_simd = false;
     const auto x = MatchDescriptors(a, b, fast), y = MatchDescriptors(a, b, portable);
     ASSERT_GT(y.size(), 0u);
     ASSERT_EQ(x.size(), y.size());
@@ -111,6 +113,96 @@ TEST(MutualNn, Avx2AndPortableScansAgree) {
     ASSERT_EQ(xc.size(), yc.size());
     for (size_t k = 0; k < xc.size(); ++k) EXPECT_EQ(xc[k].index2, yc[k].index2);
   }
+}
+
+// Byte rows shaped like RootSIFT x 512 (many small values, a few up to the
+// 255 clamp), with some all-zero rows.
+ByteDescriptors RandomByteRows(int64_t n, int64_t dims, std::mt19937& rng) {
+  std::exponential_distribution<double> e(1.0 / 40);
+  std::vector<uint8_t> values(n * dims);
+  for (auto& v : values) v = static_cast<uint8_t>(std::min(255.0, e(rng)));
+  for (int64_t i = 0; i < n; i += 97) std::fill_n(values.begin() + i * dims, dims, 0);
+  return *ByteDescriptorsOf(k::FeatureArray::From(k::DType::kUint8, dims, values));
+}
+
+// The VNNI scan (default where the processor has it) and the portable scan of
+// byte rows agree to the bit: both make every similarity from the same exact
+// integer dot product. Sizes off the 6 x 16 tiles and the 1020-row chunks.
+TEST(MutualNn, ByteScansAgreeToTheBit) {
+  if (!vnni::Supported()) GTEST_SKIP() << "this processor has no AVX-512 VNNI: only the portable byte scan runs";
+  std::mt19937 rng(12);
+  for (const auto& [n, m, dims] : {std::tuple{1203, 517, 128}, std::tuple{7, 1201, 512}, std::tuple{400, 2, 8},
+                                   std::tuple{2100, 33, 4}}) {
+    SCOPED_TRACE(std::to_string(n) + " x " + std::to_string(m) + " x " + std::to_string(dims));
+    const ByteDescriptors a = RandomByteRows(n, dims, rng), b = RandomByteRows(m, dims, rng);
+    for (const bool cross_check : {false, true}) {
+      NnOptions fast, portable;
+      fast.cross_check = portable.cross_check = cross_check;
+      fast.ratio = portable.ratio = cross_check ? 1.0 : 0.999;  // 0.999: the second nearest too
+      portable.use_simd = false;
+      const auto x = MatchDescriptors(a, b, fast), y = MatchDescriptors(a, b, portable);
+      ASSERT_GT(y.size(), 0u);
+      ASSERT_EQ(x.size(), y.size());
+      for (size_t k = 0; k < x.size(); ++k) {
+        ASSERT_EQ(x[k].index1, y[k].index1);
+        ASSERT_EQ(x[k].index2, y[k].index2) << "row " << y[k].index1;
+        ASSERT_EQ(x[k].score, y[k].score) << "row " << y[k].index1;
+      }
+    }
+  }
+}
+
+// The AVX2 tier of the byte scan (byte values as floats: exact dot products)
+// gives the VNNI scan's bits too, array by array.
+TEST(MutualNn, ByteScanTiersAgreeToTheBit) {
+  if (!vnni::Supported()) GTEST_SKIP() << "this processor has no AVX-512 VNNI: only the portable byte scan runs";
+  std::mt19937 rng(14);
+  for (const auto& [n, m, dims] : {std::tuple{1203, 517, 128}, std::tuple{9, 700, 256}, std::tuple{50, 3, 8}}) {
+    SCOPED_TRACE(std::to_string(n) + " x " + std::to_string(m) + " x " + std::to_string(dims));
+    const ByteDescriptors a = RandomByteRows(n, dims, rng), b = RandomByteRows(m, dims, rng);
+    struct Scan {
+      std::vector<int> best, col_best;
+      std::vector<float> best_sim, second_sim, col_best_sim;
+      Scan(int64_t n, int64_t m)
+          : best(n, -1), col_best(m, -1), best_sim(n, -INFINITY), second_sim(n, -INFINITY), col_best_sim(m, -INFINITY) {}
+    } x(n, m), y(n, m);
+    vnni::ScanNearest(a.values.data(), n, a.inv_norm.data(), b.values.data(), m, b.inv_norm.data(), dims,
+                      x.best.data(), x.best_sim.data(), x.second_sim.data(), x.col_best.data(), x.col_best_sim.data());
+    const std::vector<float> fa(a.values.begin(), a.values.end()), fb(b.values.begin(), b.values.end());
+    avx2::ScanNearestScaled(fa.data(), n, a.inv_norm.data(), fb.data(), m, b.inv_norm.data(), dims, y.best.data(),
+                            y.best_sim.data(), y.second_sim.data(), y.col_best.data(), y.col_best_sim.data());
+    EXPECT_EQ(x.best, y.best);
+    EXPECT_EQ(x.best_sim, y.best_sim);
+    EXPECT_EQ(x.second_sim, y.second_sim);
+    EXPECT_EQ(x.col_best, y.col_best);
+    EXPECT_EQ(x.col_best_sim, y.col_best_sim);
+  }
+}
+
+// Byte rows matched as bytes and as normalised floats: the same neighbours
+// except where two candidates are within float rounding, scores alike.
+TEST(MutualNn, ByteAndFloatPathsFindTheSameNeighbours) {
+  std::mt19937 rng(13);
+  const ByteDescriptors a = RandomByteRows(3000, 128, rng), b = RandomByteRows(2500, 128, rng);
+  auto as_floats = [](const ByteDescriptors& d) {
+    return NormalisedDescriptors(k::FeatureArray::From(k::DType::kUint8, d.dims, d.values));
+  };
+  NnOptions o;
+  o.ratio = 0.999;
+  const auto bytes = MatchDescriptors(a, b, o), floats = MatchDescriptors(as_floats(a), as_floats(b), o);
+  std::map<double, std::pair<double, double>> by_row;
+  for (const auto& m : floats) by_row[m.index1] = {m.index2, m.score};
+  size_t same = 0;
+  for (const auto& m : bytes) {
+    const auto it = by_row.find(m.index1);
+    if (it == by_row.end() || it->second.first != m.index2) continue;
+    ++same;
+    EXPECT_NEAR(m.score, it->second.second, 1e-5);
+  }
+  std::cout << bytes.size() << " byte matches, " << floats.size() << " float matches, " << same << " the same\n";
+  ASSERT_GT(bytes.size(), 100u);
+  EXPECT_GE(same, bytes.size() - bytes.size() / 1000);
+  EXPECT_GE(same, floats.size() - floats.size() / 1000);
 }
 
 TEST(MutualNn, Uint8AndFloatDescriptorsMatchAlike) {

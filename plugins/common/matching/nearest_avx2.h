@@ -43,6 +43,14 @@ bool Supported();
 void ScanNearest(const float* a, int64_t n, const float* b, int64_t m, int64_t dims, int* best,
                  float* best_sim, float* second_sim, int* col_best, float* col_best_sim);
 
+// The same scan over byte values held as floats, dims <= 258 so that every
+// dot product is an exact integer in float; the similarity of rows i and j is
+// vnni::ByteSimilarity(a_i . b_j, inv_norm_a[i], inv_norm_b[j]): the same
+// bits as the VNNI and portable byte scans.
+void ScanNearestScaled(const float* a, int64_t n, const float* inv_norm_a, const float* b, int64_t m,
+                       const float* inv_norm_b, int64_t dims, int* best, float* best_sim, float* second_sim,
+                       int* col_best, float* col_best_sim);
+
 }  // namespace locforge::matching::avx2
 
 #endif  // LOCFORGE_PLUGINS_COMMON_MATCHING_NEAREST_AVX2_H_
