@@ -46,8 +46,11 @@ void OuterLoopOptions::Declare(ParamSchema<OuterLoopOptions>& s) {
         "with estimate_time_offsets: hold the mean offset at 0 (a common offset looks like a common camera yaw)");
   s.Add("max_iterations", &O::ba, &sfm::SplineBAOptions::max_iterations, "solver iterations per round").Range(1, 10000);
   s.Add("linear_solver", &O::ba, &sfm::SplineBAOptions::linear_solver,
-        "BA linear solver: auto (sparse_schur up to sparse_schur_max_images images), sparse_schur, iterative_schur")
-      .Choices({"auto", "sparse_schur", "iterative_schur"});
+        "BA linear solver: auto (sparse_schur up to sparse_schur_max_images images), sparse_schur, iterative_schur, dense_schur")
+      .Choices({"auto", "sparse_schur", "iterative_schur", "dense_schur"});
+  s.Add("sparse_library", &O::ba, &sfm::SplineBAOptions::sparse_library,
+        "sparse Cholesky of sparse_schur: suite_sparse (CHOLMOD on the system BLAS) or eigen_sparse (no BLAS)")
+      .Choices({"suite_sparse", "eigen_sparse"});
   s.Add("sparse_schur_max_images", &O::ba, &sfm::SplineBAOptions::sparse_schur_max_images, "auto: the most images solved with sparse_schur").Min(0);
   s.Add("iterative_eta", &O::ba, &sfm::SplineBAOptions::iterative_eta, "iterative_schur: relative residual of the conjugate gradients").Range(1e-9, 0.999);
   s.Add("pose_tolerance_m", &O::pose_tolerance_m, "convergence: RMS camera-centre change of a round (m)").Min(0);

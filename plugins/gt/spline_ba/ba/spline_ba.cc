@@ -46,8 +46,11 @@ std::string SplineBAOptions::CheckMessage() const {
   if (!(iterative_eta > 0 && iterative_eta < 1)) return "iterative_eta must be in (0, 1)";
   if (!positive(max_time_offset_s) || max_time_offset_s >= knot_spacing_s)
     return "max_time_offset_s must be in (0, knot_spacing_s)";
-  if (linear_solver != "auto" && linear_solver != "sparse_schur" && linear_solver != "iterative_schur")
-    return "linear_solver must be auto, sparse_schur or iterative_schur (got '" + linear_solver + "')";
+  if (linear_solver != "auto" && linear_solver != "sparse_schur" && linear_solver != "iterative_schur" &&
+      linear_solver != "dense_schur")
+    return "linear_solver must be auto, sparse_schur, iterative_schur or dense_schur (got '" + linear_solver + "')";
+  if (sparse_library != "suite_sparse" && sparse_library != "eigen_sparse")
+    return "sparse_library must be suite_sparse or eigen_sparse (got '" + sparse_library + "')";
   return "";
 }
 
@@ -600,8 +603,12 @@ ceres::Solver::Options SolverOptions(const SplineBAOptions& options,
   ceres::Solver::Options solver;
   const bool iterative = options.linear_solver == "iterative_schur" ||
                          (options.linear_solver == "auto" && static_cast<int>(images) > options.sparse_schur_max_images);
-  solver.linear_solver_type = ordering ? (iterative ? ceres::ITERATIVE_SCHUR : ceres::SPARSE_SCHUR)
-                                       : ceres::SPARSE_NORMAL_CHOLESKY;
+  solver.linear_solver_type = !ordering                               ? ceres::SPARSE_NORMAL_CHOLESKY
+                              : options.linear_solver == "dense_schur" ? ceres::DENSE_SCHUR
+                              : iterative                              ? ceres::ITERATIVE_SCHUR
+                                                                       : ceres::SPARSE_SCHUR;
+  solver.sparse_linear_algebra_library_type =
+      options.sparse_library == "eigen_sparse" ? ceres::EIGEN_SPARSE : ceres::SUITE_SPARSE;
   solver.preconditioner_type = ceres::SCHUR_JACOBI;
   solver.linear_solver_ordering = ordering;
   solver.eta = options.iterative_eta;

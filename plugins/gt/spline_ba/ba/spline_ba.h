@@ -177,7 +177,12 @@ struct SplineBAOptions {
   // weakly held directions (the common rotation of all cameras against the
   // body, under a loose trajectory prior) and Ceres then stops on the
   // function tolerance, hence SPARSE_SCHUR while it fits in memory.
+  // "dense_schur": the reduced camera system as one dense matrix (LAPACK),
+  // for problems of a few hundred images.
   std::string linear_solver = "auto";
+  // Sparse Cholesky of SPARSE_SCHUR: "suite_sparse" (CHOLMOD, supernodal on
+  // the system's BLAS) or "eigen_sparse" (Eigen's simplicial LDLT, no BLAS).
+  std::string sparse_library = "suite_sparse";
   int sparse_schur_max_images = 2000;
   // Forcing sequence of the inexact (ITERATIVE_SCHUR) Newton steps (Ceres'
   // eta, its default 0.1): the conjugate gradients stop at this relative
