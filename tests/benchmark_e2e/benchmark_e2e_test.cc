@@ -244,9 +244,11 @@ void ExpectAtLeastColmapClassic(const ColmapClassicFloor& floor) {
 // protocol suite"), COLMAP 3.8 classic at --threads 2 on the 2-core machine:
 //   python3 configs/benchmark/suite.py --workspace SUITE --methods colmap_classic \
 //       --protocols virtual_gallery_tutorial,strecha_castle-P30_sparse,strecha_entry-P10
-// Virtual Gallery's is the better of two earlier runs (2026-12-03).
+// COLMAP classic is not deterministic: each floor is the better of the runs
+// measured, figure by figure (Virtual Gallery: 2.07 mm on 2026-12-03,
+// 0.0310 deg on 2026-12-07; entry: 2026-12-06).
 TEST(BenchmarkE2E, VirtualGalleryAtLeastColmapClassic) {
-  ExpectAtLeastColmapClassic({"data/kapture/virtual_gallery_tutorial", 4, {100, 100, 100}, 0.00207, 0.0325});
+  ExpectAtLeastColmapClassic({"data/kapture/virtual_gallery_tutorial", 4, {100, 100, 100}, 0.00207, 0.0310});
 }
 
 // Real photographs with LiDAR-registered poses: a sparse map of a courtyard

@@ -41,9 +41,50 @@ std::optional<ByteDescriptors> ByteDescriptorsOf(const kapture::FeatureArray& d)
 
 namespace {
 
+Eigen::Matrix3d Skew(const Eigen::Vector3d& t) {
+  Eigen::Matrix3d s;
+  s << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  return s;
+}
+
+}  // namespace
+
+std::optional<EpipolarBand> EpipolarBand::Make(const std::vector<Eigen::Vector2d>& pa,
+                                                const std::vector<Eigen::Vector2d>& pb, const Camera& ca,
+                                                const Camera& cb, const Pose& Ta, const Pose& Tb,
+                                                double max_error_px) {
+  const Pose T_ba = Tb * Ta.Inverse();  // x_b = R x_a + t
+  if (T_ba.t.norm() < 1e-6) return std::nullopt;
+  const Eigen::Matrix3d E = Skew(T_ba.t.normalized()) * T_ba.R();
+  const double focal = 0.25 * (ca.fx() + ca.fy() + cb.fx() + cb.fy());
+  EpipolarBand band;
+  band.t2_ = static_cast<float>(max_error_px * max_error_px / (focal * focal));
+  for (const auto& p : pa) {
+    const Eigen::Vector3d l = E * ca.Unproject(p);
+    band.lx_.push_back(static_cast<float>(l.x()));
+    band.ly_.push_back(static_cast<float>(l.y()));
+    band.lz_.push_back(static_cast<float>(l.z()));
+    band.row_den_.push_back(static_cast<float>(l.head<2>().squaredNorm()));
+  }
+  band.cols_ = static_cast<int64_t>(pb.size());
+  const size_t padded = (pb.size() + 15) / 16 * 16;  // whole panels of the SIMD scans
+  for (auto* v : {&band.cx_, &band.cy_, &band.cz_, &band.col_den_}) v->reserve(padded);
+  for (const auto& p : pb) {
+    const Eigen::Vector3d x = cb.Unproject(p), m = E.transpose() * x;
+    band.cx_.push_back(static_cast<float>(x.x()));
+    band.cy_.push_back(static_cast<float>(x.y()));
+    band.cz_.push_back(static_cast<float>(x.z()));
+    band.col_den_.push_back(static_cast<float>(m.head<2>().squaredNorm()));
+  }
+  for (auto* v : {&band.cx_, &band.cy_, &band.cz_, &band.col_den_}) v->resize(padded, 0.f);
+  return band;
+}
+
+namespace {
+
 // The portable scan: Eigen products of 1024-row blocks of a against b.
-void ScanNearestEigen(const DescriptorMatrix& a, const DescriptorMatrix& b, int* best, float* best_sim,
-                      float* second_sim, int* col_best, float* col_best_sim) {
+void ScanNearestEigen(const DescriptorMatrix& a, const DescriptorMatrix& b, const simd::BandArrays* band, int* best,
+                      float* best_sim, float* second_sim, int* col_best, float* col_best_sim) {
   const int64_t n = a.rows(), m = b.rows();
   constexpr int64_t kBlock = 1024;
   Eigen::MatrixXf sim;
@@ -53,6 +94,7 @@ void ScanNearestEigen(const DescriptorMatrix& a, const DescriptorMatrix& b, int*
     for (int64_t r = 0; r < rows; ++r) {
       const int64_t i = start + r;
       for (int64_t j = 0; j < m; ++j) {
+        if (band && !simd::InBand(*band, i, j)) continue;
         avx2::UpdateRow(i, j, sim(r, j), best, best_sim, second_sim);
         avx2::UpdateColumn(i, j, sim(r, j), col_best, col_best_sim);
       }
@@ -71,8 +113,8 @@ DescriptorMatrix ByteValues(const ByteDescriptors& d) {
 // (Eigen, in float up to vnni::kMaxExactFloatDims dimensions, else int32),
 // each made a similarity by vnni::ByteSimilarity.
 template <class Scalar>
-void ScanNearestBytes(const ByteDescriptors& a, const ByteDescriptors& b, int* best, float* best_sim,
-                      float* second_sim, int* col_best, float* col_best_sim) {
+void ScanNearestBytes(const ByteDescriptors& a, const ByteDescriptors& b, const simd::BandArrays* band, int* best,
+                      float* best_sim, float* second_sim, int* col_best, float* col_best_sim) {
   using Rows = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   using ByteRows = Eigen::Matrix<uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const int64_t n = a.rows, m = b.rows, dims = a.dims;
@@ -86,6 +128,7 @@ void ScanNearestBytes(const ByteDescriptors& a, const ByteDescriptors& b, int* b
     for (int64_t r = 0; r < rows; ++r) {
       const int64_t i = start + r;
       for (int64_t j = 0; j < m; ++j) {
+        if (band && !simd::InBand(*band, i, j)) continue;
         const float s = vnni::ByteSimilarity(static_cast<int32_t>(dot(r, j)), a.inv_norm[i], b.inv_norm[j]);
         avx2::UpdateRow(i, j, s, best, best_sim, second_sim);
         avx2::UpdateColumn(i, j, s, col_best, col_best_sim);
@@ -127,29 +170,42 @@ void CheckSameSize(int64_t dims_a, int64_t dims_b) {
     throw InputError("descriptor sizes differ: " + std::to_string(dims_a) + " vs " + std::to_string(dims_b));
 }
 
+// The band's view, checked against the scan's size (null without a band).
+std::optional<simd::BandArrays> BandView(const EpipolarBand* band, int64_t n, int64_t m) {
+  if (!band) return std::nullopt;
+  if (band->rows() != n || band->cols() != m)
+    throw Error("epipolar band of " + std::to_string(band->rows()) + " x " + std::to_string(band->cols()) +
+                " keypoints for " + std::to_string(n) + " x " + std::to_string(m) + " descriptors");
+  return band->View();
+}
+
 }  // namespace
 
 std::vector<kapture::Match> MatchDescriptors(const DescriptorMatrix& a, const DescriptorMatrix& b,
-                                             const NnOptions& o) {
+                                             const NnOptions& o, const EpipolarBand* epipolar_band) {
   const int64_t n = a.rows(), m = b.rows();
   if (n == 0 || m == 0) return {};
   CheckSameSize(a.cols(), b.cols());
+  const std::optional<simd::BandArrays> view = BandView(epipolar_band, n, m);
+  const simd::BandArrays* band = view ? &*view : nullptr;
   Nearest s(n, m);
   static const bool kAvx2 = avx2::Supported();
   if (o.use_simd && kAvx2 && a.cols() % 8 == 0)
-    avx2::ScanNearest(a.data(), n, b.data(), m, a.cols(), s.best.data(), s.best_sim.data(), s.second_sim.data(),
-                      s.col_best.data(), s.col_best_sim.data());
+    avx2::ScanNearest(a.data(), n, b.data(), m, a.cols(), band, s.best.data(), s.best_sim.data(),
+                      s.second_sim.data(), s.col_best.data(), s.col_best_sim.data());
   else
-    ScanNearestEigen(a, b, s.best.data(), s.best_sim.data(), s.second_sim.data(), s.col_best.data(),
+    ScanNearestEigen(a, b, band, s.best.data(), s.best_sim.data(), s.second_sim.data(), s.col_best.data(),
                      s.col_best_sim.data());
   return SelectMatches(s, o);
 }
 
 std::vector<kapture::Match> MatchDescriptors(const ByteDescriptors& a, const ByteDescriptors& b,
-                                             const NnOptions& o) {
+                                             const NnOptions& o, const EpipolarBand* epipolar_band) {
   const int64_t n = a.rows, m = b.rows;
   if (n == 0 || m == 0) return {};
   CheckSameSize(a.dims, b.dims);
+  const std::optional<simd::BandArrays> view = BandView(epipolar_band, n, m);
+  const simd::BandArrays* band = view ? &*view : nullptr;
   if (a.dims > vnni::kMaxDims)
     throw InputError("byte descriptors of " + std::to_string(a.dims) + " dimensions: at most " +
                      std::to_string(vnni::kMaxDims) + " are matched exactly");
@@ -159,16 +215,16 @@ std::vector<kapture::Match> MatchDescriptors(const ByteDescriptors& a, const Byt
   int *best = s.best.data(), *col_best = s.col_best.data();
   float *best_sim = s.best_sim.data(), *second_sim = s.second_sim.data(), *col_best_sim = s.col_best_sim.data();
   if (o.use_simd && kVnni && a.dims % 4 == 0) {
-    vnni::ScanNearest(a.values.data(), n, a.inv_norm.data(), b.values.data(), m, b.inv_norm.data(), a.dims, best,
-                      best_sim, second_sim, col_best, col_best_sim);
+    vnni::ScanNearest(a.values.data(), n, a.inv_norm.data(), b.values.data(), m, b.inv_norm.data(), a.dims, band,
+                      best, best_sim, second_sim, col_best, col_best_sim);
   } else if (o.use_simd && kAvx2 && a.dims % 8 == 0 && exact_in_float) {
     const DescriptorMatrix fa = ByteValues(a), fb = ByteValues(b);
-    avx2::ScanNearestScaled(fa.data(), n, a.inv_norm.data(), fb.data(), m, b.inv_norm.data(), a.dims, best,
-                            best_sim, second_sim, col_best, col_best_sim);
+    avx2::ScanNearestScaled(fa.data(), n, a.inv_norm.data(), fb.data(), m, b.inv_norm.data(), a.dims, band,
+                            best, best_sim, second_sim, col_best, col_best_sim);
   } else if (exact_in_float) {
-    ScanNearestBytes<float>(a, b, best, best_sim, second_sim, col_best, col_best_sim);
+    ScanNearestBytes<float>(a, b, band, best, best_sim, second_sim, col_best, col_best_sim);
   } else {
-    ScanNearestBytes<int32_t>(a, b, best, best_sim, second_sim, col_best, col_best_sim);
+    ScanNearestBytes<int32_t>(a, b, band, best, best_sim, second_sim, col_best, col_best_sim);
   }
   return SelectMatches(s, o);
 }
@@ -188,11 +244,6 @@ Eigen::Matrix3d ToEigen(const cv::Mat& m) {
   return e;
 }
 
-Eigen::Matrix3d Skew(const Eigen::Vector3d& t) {
-  Eigen::Matrix3d s;
-  s << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
-  return s;
-}
 
 }  // namespace
 

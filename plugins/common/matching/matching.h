@@ -16,6 +16,7 @@
 #include "locforge/camera.h"
 #include "locforge/kapture/features.h"
 #include "locforge/pose.h"
+#include "nearest_band.h"
 
 namespace locforge::matching {
 
@@ -34,6 +35,34 @@ struct ByteDescriptors {
 // uint8 descriptor arrays as ByteDescriptors; nullopt for any other dtype.
 std::optional<ByteDescriptors> ByteDescriptorsOf(const kapture::FeatureArray& descriptors);
 
+// Candidates restricted by two known poses: row i (keypoint x_a of image a)
+// and column j (x_b of image b) may match only when the Sampson distance of
+// the pair to the poses' epipolar geometry, in pixels by the mean focal
+// length (as EpipolarErrorsPx), is at most max_error_px. The nearest, the
+// second nearest of the ratio test and the mutual check are then all taken
+// among those candidates: a feature repeated elsewhere in the image no longer
+// fails the ratio test, one repeated along its epipolar line still does.
+class EpipolarBand {
+ public:
+  // nullopt when the poses share their centre (no epipolar geometry).
+  static std::optional<EpipolarBand> Make(const std::vector<Eigen::Vector2d>& pixels_a,
+                                          const std::vector<Eigen::Vector2d>& pixels_b, const Camera& camera_a,
+                                          const Camera& camera_b, const Pose& T_a_world, const Pose& T_b_world,
+                                          double max_error_px);
+  int64_t rows() const { return static_cast<int64_t>(lx_.size()); }
+  int64_t cols() const { return cols_; }
+  // The scans' view (nearest_band.h); column arrays padded to whole panels.
+  simd::BandArrays View() const {
+    return {lx_.data(), ly_.data(), lz_.data(), row_den_.data(), cx_.data(), cy_.data(), cz_.data(),
+            col_den_.data(), t2_};
+  }
+
+ private:
+  std::vector<float> lx_, ly_, lz_, row_den_, cx_, cy_, cz_, col_den_;
+  int64_t cols_ = 0;
+  float t2_ = 0;
+};
+
 struct NnOptions {
   bool cross_check = true;   // keep i<->j only when each is the other's nearest
   double ratio = 1.0;        // Lowe's ratio d1/d2 must be below this (1: off)
@@ -44,11 +73,11 @@ struct NnOptions {
 // Nearest neighbours of the rows of `a` among the rows of `b`; score = cosine
 // similarity. Sorted by index in `a`. Memory O(1024 x rows(b)).
 std::vector<kapture::Match> MatchDescriptors(const DescriptorMatrix& a, const DescriptorMatrix& b,
-                                             const NnOptions& options);
+                                             const NnOptions& options, const EpipolarBand* band = nullptr);
 // The same for byte rows: similarities from exact integer dot products
 // (nearest_vnni.h), so the SIMD and portable scans agree to the bit.
 std::vector<kapture::Match> MatchDescriptors(const ByteDescriptors& a, const ByteDescriptors& b,
-                                             const NnOptions& options);
+                                             const NnOptions& options, const EpipolarBand* band = nullptr);
 
 // ------------------------------------------------------------ verification
 

@@ -166,10 +166,11 @@ TEST(MutualNn, ByteScanTiersAgreeToTheBit) {
       Scan(int64_t n, int64_t m)
           : best(n, -1), col_best(m, -1), best_sim(n, -INFINITY), second_sim(n, -INFINITY), col_best_sim(m, -INFINITY) {}
     } x(n, m), y(n, m);
-    vnni::ScanNearest(a.values.data(), n, a.inv_norm.data(), b.values.data(), m, b.inv_norm.data(), dims,
+    vnni::ScanNearest(a.values.data(), n, a.inv_norm.data(), b.values.data(), m, b.inv_norm.data(), dims, nullptr,
                       x.best.data(), x.best_sim.data(), x.second_sim.data(), x.col_best.data(), x.col_best_sim.data());
     const std::vector<float> fa(a.values.begin(), a.values.end()), fb(b.values.begin(), b.values.end());
-    avx2::ScanNearestScaled(fa.data(), n, a.inv_norm.data(), fb.data(), m, b.inv_norm.data(), dims, y.best.data(),
+    avx2::ScanNearestScaled(fa.data(), n, a.inv_norm.data(), fb.data(), m, b.inv_norm.data(), dims, nullptr,
+                            y.best.data(),
                             y.best_sim.data(), y.second_sim.data(), y.col_best.data(), y.col_best_sim.data());
     EXPECT_EQ(x.best, y.best);
     EXPECT_EQ(x.best_sim, y.best_sim);
@@ -203,6 +204,68 @@ TEST(MutualNn, ByteAndFloatPathsFindTheSameNeighbours) {
   ASSERT_GT(bytes.size(), 100u);
   EXPECT_GE(same, bytes.size() - bytes.size() / 1000);
   EXPECT_GE(same, floats.size() - floats.size() / 1000);
+}
+
+// Two cameras 1 m apart looking at a wall, points seen by both: each point's
+// descriptor is repeated by a distractor elsewhere in image b (a repeated
+// facade element). Without a band the ratio test drops every such point; with
+// the known poses' band the distractors are not candidates and the true
+// matches stay, while a distractor placed on the epipolar line still fails
+// the ratio test. Every scan tier gives the same matches.
+TEST(MutualNn, EpipolarBandKeepsWhatRepeatsOffTheLine) {
+  std::mt19937 rng(15);
+  const Camera camera{CameraModelId::kPinhole, 640, 480, {500, 500, 320, 240}};
+  const Pose Ta = Pose::Identity();
+  Pose Tb = Pose::Identity();
+  Tb.t = Eigen::Vector3d(-1, 0, 0);  // camera b 1 m to the right of a (x_b = x_a - 1)
+  std::uniform_real_distribution<double> u(-1.5, 1.5), depth(4, 8);
+  std::vector<Eigen::Vector2d> pa, pb;
+  const int n = 300;
+  std::vector<uint8_t> da, db;
+  ByteDescriptors base = RandomByteRows(n, 128, rng);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d X(u(rng), u(rng) * 0.8, depth(rng));
+    pa.push_back(camera.Project(Ta * X));
+    pb.push_back(camera.Project(Tb * X));
+  }
+  // b: the n true keypoints, then a distractor of each: the same descriptor
+  // 60 px lower (off the horizontal epipolar line) for i < 200, 60 px along
+  // the line for the others.
+  for (int i = 0; i < n; ++i) pb.push_back(pb[i] + (i < 200 ? Eigen::Vector2d(0, 60) : Eigen::Vector2d(-60, 0)));
+  for (auto& v : base.values) v = std::max<uint8_t>(v, 1);  // no all-zero row: every point can match
+  da = base.values;
+  db = base.values;
+  db.insert(db.end(), base.values.begin(), base.values.end());
+  const ByteDescriptors a = *ByteDescriptorsOf(k::FeatureArray::From(k::DType::kUint8, 128, da));
+  const ByteDescriptors b = *ByteDescriptorsOf(k::FeatureArray::From(k::DType::kUint8, 128, db));
+  const auto band = EpipolarBand::Make(pa, pb, camera, camera, Ta, Tb, 4.0);
+  ASSERT_TRUE(band.has_value());
+  NnOptions o;
+  o.ratio = 0.8;
+  EXPECT_EQ(MatchDescriptors(a, b, o).size(), 0u) << "every feature has an identical twin: the ratio test drops all";
+  for (const bool simd : {true, false}) {
+    o.use_simd = simd;
+    const auto kept = MatchDescriptors(a, b, o, &*band);
+    int correct = 0, along_line = 0;
+    for (const auto& m : kept) {
+      correct += m.index1 == m.index2;
+      along_line += m.index1 >= 200;
+    }
+    EXPECT_EQ(correct, 200) << "simd " << simd;
+    EXPECT_EQ(along_line, 0) << "simd " << simd << ": a twin on the epipolar line must still fail the ratio test";
+    EXPECT_EQ(static_cast<int>(kept.size()), 200) << "simd " << simd;
+  }
+  // The float path with the same band agrees.
+  auto as_floats = [](const ByteDescriptors& d) {
+    return NormalisedDescriptors(k::FeatureArray::From(k::DType::kUint8, d.dims, d.values));
+  };
+  EXPECT_EQ(MatchDescriptors(as_floats(a), as_floats(b), o, &*band).size(), 200u);
+  // A band of other sizes is refused.
+  const auto small = EpipolarBand::Make(pa, std::vector<Eigen::Vector2d>(pb.begin(), pb.begin() + n), camera, camera,
+                                        Ta, Tb, 4.0);
+  EXPECT_THROW(MatchDescriptors(a, b, o, &*small), Error);
+  // Coincident centres: no band.
+  EXPECT_FALSE(EpipolarBand::Make(pa, pb, camera, camera, Ta, Ta, 4.0).has_value());
 }
 
 TEST(MutualNn, Uint8AndFloatDescriptorsMatchAlike) {

@@ -85,18 +85,18 @@ struct ScaledKernel {
 }  // namespace
 
 void ScanNearestScaled(const float* a, int64_t n, const float* inv_norm_a, const float* b, int64_t m,
-                       const float* inv_norm_b, int64_t dims, int* best, float* best_sim, float* second_sim,
-                       int* col_best, float* col_best_sim) {
+                       const float* inv_norm_b, int64_t dims, const simd::BandArrays* band, int* best,
+                       float* best_sim, float* second_sim, int* col_best, float* col_best_sim) {
   ScaledKernel kernel{{a, dims, PackPanels(b, m, dims), std::vector<float>(dims, 0.f)}, inv_norm_a, {}};
   kernel.inv_norm_b.assign(inv_norm_b, inv_norm_b + m);
   kernel.inv_norm_b.resize((m + kCols - 1) / kCols * kCols, 0.f);
-  simd::ScanTiles(n, m, kernel, best, best_sim, second_sim, col_best, col_best_sim);
+  simd::ScanTiles(n, m, kernel, band, best, best_sim, second_sim, col_best, col_best_sim);
 }
 
-void ScanNearest(const float* a, int64_t n, const float* b, int64_t m, int64_t dims, int* best, float* best_sim,
-                 float* second_sim, int* col_best, float* col_best_sim) {
+void ScanNearest(const float* a, int64_t n, const float* b, int64_t m, int64_t dims, const simd::BandArrays* band,
+                 int* best, float* best_sim, float* second_sim, int* col_best, float* col_best_sim) {
   const FloatKernel kernel{a, dims, PackPanels(b, m, dims), std::vector<float>(dims, 0.f)};
-  simd::ScanTiles(n, m, kernel, best, best_sim, second_sim, col_best, col_best_sim);
+  simd::ScanTiles(n, m, kernel, band, best, best_sim, second_sim, col_best, col_best_sim);
 }
 
 }  // namespace locforge::matching::avx2

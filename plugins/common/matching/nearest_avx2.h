@@ -8,6 +8,8 @@
 
 #include <cstdint>
 
+#include "nearest_band.h"
+
 namespace locforge::matching::avx2 {
 
 // One similarity s of row i (of a) and row j (of b) into row i's running
@@ -39,17 +41,18 @@ bool Supported();
 // product (best[i], best_sim[i], second_sim[i]); for each row j of b: the row
 // of a most similar to it (col_best[j], col_best_sim[j]). Ties keep the lowest
 // index, as the Eigen path does. The sims arrays must start at -infinity and
-// the index arrays at -1.
-void ScanNearest(const float* a, int64_t n, const float* b, int64_t m, int64_t dims, int* best,
-                 float* best_sim, float* second_sim, int* col_best, float* col_best_sim);
+// the index arrays at -1. With a band (may be null), only pairs inside it are
+// candidates.
+void ScanNearest(const float* a, int64_t n, const float* b, int64_t m, int64_t dims, const simd::BandArrays* band,
+                 int* best, float* best_sim, float* second_sim, int* col_best, float* col_best_sim);
 
 // The same scan over byte values held as floats, dims <= 258 so that every
 // dot product is an exact integer in float; the similarity of rows i and j is
 // vnni::ByteSimilarity(a_i . b_j, inv_norm_a[i], inv_norm_b[j]): the same
 // bits as the VNNI and portable byte scans.
 void ScanNearestScaled(const float* a, int64_t n, const float* inv_norm_a, const float* b, int64_t m,
-                       const float* inv_norm_b, int64_t dims, int* best, float* best_sim, float* second_sim,
-                       int* col_best, float* col_best_sim);
+                       const float* inv_norm_b, int64_t dims, const simd::BandArrays* band, int* best,
+                       float* best_sim, float* second_sim, int* col_best, float* col_best_sim);
 
 }  // namespace locforge::matching::avx2
 

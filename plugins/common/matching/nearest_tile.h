@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "nearest_avx2.h"
+#include "nearest_band.h"
 
 namespace locforge::matching::simd {
 
@@ -63,16 +64,37 @@ __attribute__((target("avx2,fma"))) inline void UpdateFromTile(__m256 sim[kRows]
   }
 }
 
+// Similarities of a tile outside the band set to -infinity: never a nearest,
+// never a second nearest.
+__attribute__((target("avx2,fma"))) inline void MaskTile(const BandArrays& band, int64_t i0, int rows_here,
+                                                         int64_t j0, __m256 sim[kRows][2]) {
+  const __m256 none = _mm256_set1_ps(-std::numeric_limits<float>::infinity()), t2 = _mm256_set1_ps(band.t2);
+  for (int h = 0; h < 2; ++h) {
+    const int64_t j = j0 + 8 * h;
+    const __m256 cx = _mm256_loadu_ps(band.cx + j), cy = _mm256_loadu_ps(band.cy + j);
+    const __m256 cz = _mm256_loadu_ps(band.cz + j), col_den = _mm256_loadu_ps(band.col_den + j);
+    for (int r = 0; r < rows_here; ++r) {
+      const int64_t i = i0 + r;
+      const __m256 num = _mm256_add_ps(
+          _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(band.lx[i]), cx), _mm256_mul_ps(_mm256_set1_ps(band.ly[i]), cy)),
+          _mm256_mul_ps(_mm256_set1_ps(band.lz[i]), cz));
+      const __m256 bound = _mm256_mul_ps(t2, _mm256_add_ps(_mm256_set1_ps(band.row_den[i]), col_den));
+      const __m256 inside = _mm256_cmp_ps(_mm256_mul_ps(num, num), bound, _CMP_LE_OQ);
+      sim[r][h] = _mm256_blendv_ps(none, sim[r][h], inside);
+    }
+  }
+}
+
 // The scan over n rows of a and m rows of b. kernel(i0, rows_here, j0, sim)
 // fills the similarities of rows i0.. (rows_here of them; the others are
 // ignored) and the kCols columns from j0 (columns past m too: they are never
-// read back). Order: chunks of a ascending, panels ascending, rows ascending,
+// read back); with a band, the tile is then masked to it. Order: chunks of a ascending, panels ascending, rows ascending,
 // so every row sees its columns ascending and every column its rows
 // ascending: the strict comparisons keep the lowest index on ties, as the
 // portable scans do.
 template <class Kernel>
-__attribute__((target("avx2,fma"))) void ScanTiles(int64_t n, int64_t m, const Kernel& kernel, int* best,
-                                                   float* best_sim, float* second_sim, int* col_best,
+__attribute__((target("avx2,fma"))) void ScanTiles(int64_t n, int64_t m, const Kernel& kernel, const BandArrays* band,
+                                                   int* best, float* best_sim, float* second_sim, int* col_best,
                                                    float* col_best_sim) {
   const int64_t padded_m = (m + kCols - 1) / kCols * kCols;
   // The columns' running results, padded to whole panels.
@@ -88,6 +110,7 @@ __attribute__((target("avx2,fma"))) void ScanTiles(int64_t n, int64_t m, const K
         const int rows_here = static_cast<int>(chunk_end - i0 < kRows ? chunk_end - i0 : kRows);
         __m256 sim[kRows][2];
         kernel(i0, rows_here, j0, sim);
+        if (band) MaskTile(*band, i0, rows_here, j0, sim);
         UpdateFromTile(sim, i0, rows_here, j0, cols, col_sim.data(), col_row.data(), best, best_sim, second_sim);
       }
     }

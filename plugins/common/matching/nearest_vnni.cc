@@ -87,8 +87,8 @@ struct ByteKernel {
 }  // namespace
 
 void ScanNearest(const uint8_t* a, int64_t n, const float* inv_norm_a, const uint8_t* b, int64_t m,
-                 const float* inv_norm_b, int64_t dims, int* best, float* best_sim, float* second_sim,
-                 int* col_best, float* col_best_sim) {
+                 const float* inv_norm_b, int64_t dims, const simd::BandArrays* band, int* best, float* best_sim,
+                 float* second_sim, int* col_best, float* col_best_sim) {
   ByteKernel kernel{a, dims, inv_norm_a, PackPanels(b, m, dims), {}, {}, std::vector<uint8_t>(dims, 0)};
   kernel.inv_norm_b.assign(inv_norm_b, inv_norm_b + m);
   kernel.inv_norm_b.resize((m + kCols - 1) / kCols * kCols, 0.f);
@@ -98,7 +98,7 @@ void ScanNearest(const uint8_t* a, int64_t n, const float* inv_norm_a, const uin
     for (int64_t k = 0; k < dims; ++k) sum += a[i * dims + k];
     kernel.shift_a[i] = 128 * sum;
   }
-  simd::ScanTiles(n, m, kernel, best, best_sim, second_sim, col_best, col_best_sim);
+  simd::ScanTiles(n, m, kernel, band, best, best_sim, second_sim, col_best, col_best_sim);
 }
 
 }  // namespace locforge::matching::vnni

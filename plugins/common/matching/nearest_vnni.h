@@ -10,6 +10,8 @@
 
 #include <cstdint>
 
+#include "nearest_band.h"
+
 namespace locforge::matching::vnni {
 
 // The cosine similarity of two byte rows from their exact dot product and
@@ -28,10 +30,10 @@ bool Supported();
 
 // Rows of `a` (n x dims) and `b` (m x dims) bytes, row-major, dims a multiple
 // of 4 and at most kMaxDims (int32 sums stay exact); inv_norm_a / inv_norm_b: 1 / L2 norm of each row (0 for a zero row).
-// Results as avx2::ScanNearest, with ByteSimilarity as the similarity.
+// Results as avx2::ScanNearest (band included), with ByteSimilarity as the similarity.
 void ScanNearest(const uint8_t* a, int64_t n, const float* inv_norm_a, const uint8_t* b, int64_t m,
-                 const float* inv_norm_b, int64_t dims, int* best, float* best_sim, float* second_sim,
-                 int* col_best, float* col_best_sim);
+                 const float* inv_norm_b, int64_t dims, const simd::BandArrays* band, int* best, float* best_sim,
+                 float* second_sim, int* col_best, float* col_best_sim);
 
 }  // namespace locforge::matching::vnni
 
