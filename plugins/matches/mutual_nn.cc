@@ -70,7 +70,7 @@ class MutualNnStage : public PerItemStage<MutualNnOptions> {
     nn.ratio = options().ratio;
     nn.max_distance = options().max_distance;
     const kapture::FeatureArray &da = fa.Descriptors(a), &db = fb.Descriptors(b);
-    const std::optional<EpipolarBand> band = Band(ctx, a, b, fa, fb);
+    const std::optional<EpipolarBand> band = Band(a, b, fa, fb);
     const EpipolarBand* in_band = band ? &*band : nullptr;
     std::optional<ByteDescriptors> bytes_a = ByteDescriptorsOf(da), bytes_b = ByteDescriptorsOf(db);
     const auto matches = bytes_a && bytes_b
@@ -92,11 +92,10 @@ class MutualNnStage : public PerItemStage<MutualNnOptions> {
     }
     return *features_;
   }
-  // The pair's epipolar band when asked for and both images are posed.
-  std::optional<EpipolarBand> Band(RunContext& ctx, const std::string& a, const std::string& b,
-                                   const FeatureFolder& fa, const FeatureFolder& fb) {
+  // The pair's epipolar band when asked for and both images are posed (after Load).
+  std::optional<EpipolarBand> Band(const std::string& a, const std::string& b, const FeatureFolder& fa,
+                                   const FeatureFolder& fb) const {
     if (options().epipolar_band_px <= 0) return std::nullopt;
-    Load(ctx);
     const ImageGeometry::Entry *ea = geometry_.Find(a), *eb = geometry_.Find(b);
     if (!ea || !eb || !ea->has_camera || !eb->has_camera || !ea->pose || !eb->pose) return std::nullopt;
     return EpipolarBand::Make(fa.Keypoints(a), fb.Keypoints(b), ea->camera, eb->camera, *ea->pose, *eb->pose,

@@ -47,16 +47,33 @@ Eigen::Matrix3d Skew(const Eigen::Vector3d& t) {
   return s;
 }
 
+// The relative pose x2 = R x1 + t of two world-to-camera poses and its
+// essential matrix [t / |t|]x R (none when the centres coincide).
+struct PosePairGeometry {
+  Eigen::Matrix3d R;
+  std::optional<Eigen::Matrix3d> E;
+};
+
+PosePairGeometry GeometryOfPoses(const Pose& T1_world, const Pose& T2_world) {
+  const Pose T21 = T2_world * T1_world.Inverse();
+  PosePairGeometry g{T21.R(), std::nullopt};
+  if (T21.t.norm() >= 1e-6) g.E = Skew(T21.t.normalized()) * g.R;
+  return g;
+}
+
+// Pixels per unit of the normalised image plane, for both images at once.
+double MeanFocal(const Camera& c1, const Camera& c2) { return 0.25 * (c1.fx() + c1.fy() + c2.fx() + c2.fy()); }
+
 }  // namespace
 
 std::optional<EpipolarBand> EpipolarBand::Make(const std::vector<Eigen::Vector2d>& pa,
                                                 const std::vector<Eigen::Vector2d>& pb, const Camera& ca,
                                                 const Camera& cb, const Pose& Ta, const Pose& Tb,
                                                 double max_error_px) {
-  const Pose T_ba = Tb * Ta.Inverse();  // x_b = R x_a + t
-  if (T_ba.t.norm() < 1e-6) return std::nullopt;
-  const Eigen::Matrix3d E = Skew(T_ba.t.normalized()) * T_ba.R();
-  const double focal = 0.25 * (ca.fx() + ca.fy() + cb.fx() + cb.fy());
+  const PosePairGeometry g = GeometryOfPoses(Ta, Tb);
+  if (!g.E) return std::nullopt;
+  const Eigen::Matrix3d& E = *g.E;
+  const double focal = MeanFocal(ca, cb);
   EpipolarBand band;
   band.t2_ = static_cast<float>(max_error_px * max_error_px / (focal * focal));
   for (const auto& p : pa) {
@@ -67,7 +84,7 @@ std::optional<EpipolarBand> EpipolarBand::Make(const std::vector<Eigen::Vector2d
     band.row_den_.push_back(static_cast<float>(l.head<2>().squaredNorm()));
   }
   band.cols_ = static_cast<int64_t>(pb.size());
-  const size_t padded = (pb.size() + 15) / 16 * 16;  // whole panels of the SIMD scans
+  const size_t padded = static_cast<size_t>(simd::PanelPadded(band.cols_));  // the SIMD scans read whole panels
   for (auto* v : {&band.cx_, &band.cy_, &band.cz_, &band.col_den_}) v->reserve(padded);
   for (const auto& p : pb) {
     const Eigen::Vector3d x = cb.Unproject(p), m = E.transpose() * x;
@@ -244,7 +261,6 @@ Eigen::Matrix3d ToEigen(const cv::Mat& m) {
   return e;
 }
 
-
 }  // namespace
 
 TwoViewResult VerifyTwoView(const std::vector<Eigen::Vector2d>& p1,
@@ -270,7 +286,7 @@ TwoViewResult VerifyTwoView(const std::vector<Eigen::Vector2d>& p1,
   }
   cv::Mat mask, model;
   if (essential) {
-    const double focal = 0.25 * (c1->fx() + c1->fy() + c2->fx() + c2->fy());
+    const double focal = MeanFocal(*c1, *c2);
     model = cv::findEssentialMat(a, b, cv::Mat::eye(3, 3, CV_64F), UsacMethod(o.method),
                                  o.confidence, o.max_error_px / focal, o.max_iterations, mask);
   } else {
@@ -288,23 +304,18 @@ TwoViewResult VerifyTwoView(const std::vector<Eigen::Vector2d>& p1,
 std::vector<double> EpipolarErrorsPx(const std::vector<Eigen::Vector2d>& p1,
                                      const std::vector<Eigen::Vector2d>& p2, const Camera& c1,
                                      const Camera& c2, const Pose& T1_world, const Pose& T2_world) {
-  const Pose T21 = T2_world * T1_world.Inverse();  // x2 = R x1 + t
-  const Eigen::Matrix3d R = T21.R();
-  const Eigen::Vector3d t = T21.t;
-  const double focal = 0.25 * (c1.fx() + c1.fy() + c2.fx() + c2.fy());
-  const double scene_scale = std::max(1e-9, t.norm());
-  const bool no_baseline = t.norm() < 1e-6;
-  const Eigen::Matrix3d E = Skew(t / scene_scale) * R;
+  const PosePairGeometry g = GeometryOfPoses(T1_world, T2_world);
+  const double focal = MeanFocal(c1, c2);
   std::vector<double> errors(p1.size());
   for (size_t i = 0; i < p1.size(); ++i) {
     const Eigen::Vector3d x1 = c1.Unproject(p1[i]), x2 = c2.Unproject(p2[i]);
-    if (no_baseline) {
-      const Eigen::Vector3d r = R * x1;
+    if (!g.E) {  // no baseline: the transfer error by the rotation
+      const Eigen::Vector3d r = g.R * x1;
       errors[i] = r.z() > 0 ? focal * (r.hnormalized() - x2.hnormalized()).norm()
                             : std::numeric_limits<double>::infinity();
       continue;
     }
-    const Eigen::Vector3d Ex1 = E * x1, Etx2 = E.transpose() * x2;
+    const Eigen::Vector3d Ex1 = *g.E * x1, Etx2 = g.E->transpose() * x2;
     const double num = x2.dot(Ex1);
     const double den = Ex1.head<2>().squaredNorm() + Etx2.head<2>().squaredNorm();
     errors[i] = den > 0 ? focal * std::abs(num) / std::sqrt(den) : std::numeric_limits<double>::infinity();

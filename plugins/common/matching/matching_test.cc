@@ -79,6 +79,17 @@ TEST(MutualNn, RecoversAKnownPermutation) {
   EXPECT_EQ(MatchDescriptors(a, b, plain).size(), 1700u);
 }
 
+// The same matches, pair by pair, scores within `score_tolerance` (0: the
+// same bits).
+void ExpectSameMatches(const std::vector<k::Match>& x, const std::vector<k::Match>& y, double score_tolerance) {
+  ASSERT_EQ(x.size(), y.size());
+  for (size_t i = 0; i < x.size(); ++i) {
+    ASSERT_EQ(x[i].index1, y[i].index1);
+    ASSERT_EQ(x[i].index2, y[i].index2) << "row " << y[i].index1;
+    ASSERT_NEAR(x[i].score, y[i].score, score_tolerance) << "row " << y[i].index1;
+  }
+}
+
 // The AVX2 scan (default where the processor has it) and the portable Eigen
 // scan find the same neighbours: sizes not multiples of the 3x4 block or of
 // the 384-row chunk, descriptor sizes 8, 128 and 512. They sum in different
@@ -101,12 +112,7 @@ TEST(MutualNn, Avx2AndPortableScansAgree) {
     portable.use_simd = false;
     const auto x = MatchDescriptors(a, b, fast), y = MatchDescriptors(a, b, portable);
     ASSERT_GT(y.size(), 0u);
-    ASSERT_EQ(x.size(), y.size());
-    for (size_t k = 0; k < x.size(); ++k) {
-      EXPECT_EQ(x[k].index1, y[k].index1);
-      EXPECT_EQ(x[k].index2, y[k].index2) << "row " << y[k].index1;
-      EXPECT_NEAR(x[k].score, y[k].score, 1e-5);
-    }
+    ExpectSameMatches(x, y, 1e-5);
     fast.cross_check = portable.cross_check = true;  // the columns' nearest too
     fast.ratio = portable.ratio = 1.0;
     const auto xc = MatchDescriptors(a, b, fast), yc = MatchDescriptors(a, b, portable);
@@ -123,6 +129,11 @@ ByteDescriptors RandomByteRows(int64_t n, int64_t dims, std::mt19937& rng) {
   for (auto& v : values) v = static_cast<uint8_t>(std::min(255.0, e(rng)));
   for (int64_t i = 0; i < n; i += 97) std::fill_n(values.begin() + i * dims, dims, 0);
   return *ByteDescriptorsOf(k::FeatureArray::From(k::DType::kUint8, dims, values));
+}
+
+// Byte rows as the float path sees them (converted, L2-normalised).
+DescriptorMatrix AsNormalisedFloats(const ByteDescriptors& d) {
+  return NormalisedDescriptors(k::FeatureArray::From(k::DType::kUint8, d.dims, d.values));
 }
 
 // The VNNI scan (default where the processor has it) and the portable scan of
@@ -142,12 +153,7 @@ TEST(MutualNn, ByteScansAgreeToTheBit) {
       portable.use_simd = false;
       const auto x = MatchDescriptors(a, b, fast), y = MatchDescriptors(a, b, portable);
       ASSERT_GT(y.size(), 0u);
-      ASSERT_EQ(x.size(), y.size());
-      for (size_t k = 0; k < x.size(); ++k) {
-        ASSERT_EQ(x[k].index1, y[k].index1);
-        ASSERT_EQ(x[k].index2, y[k].index2) << "row " << y[k].index1;
-        ASSERT_EQ(x[k].score, y[k].score) << "row " << y[k].index1;
-      }
+      ExpectSameMatches(x, y, 0.0);
     }
   }
 }
@@ -185,12 +191,9 @@ TEST(MutualNn, ByteScanTiersAgreeToTheBit) {
 TEST(MutualNn, ByteAndFloatPathsFindTheSameNeighbours) {
   std::mt19937 rng(13);
   const ByteDescriptors a = RandomByteRows(3000, 128, rng), b = RandomByteRows(2500, 128, rng);
-  auto as_floats = [](const ByteDescriptors& d) {
-    return NormalisedDescriptors(k::FeatureArray::From(k::DType::kUint8, d.dims, d.values));
-  };
   NnOptions o;
   o.ratio = 0.999;
-  const auto bytes = MatchDescriptors(a, b, o), floats = MatchDescriptors(as_floats(a), as_floats(b), o);
+  const auto bytes = MatchDescriptors(a, b, o), floats = MatchDescriptors(AsNormalisedFloats(a), AsNormalisedFloats(b), o);
   std::map<double, std::pair<double, double>> by_row;
   for (const auto& m : floats) by_row[m.index1] = {m.index2, m.score};
   size_t same = 0;
@@ -256,10 +259,7 @@ TEST(MutualNn, EpipolarBandKeepsWhatRepeatsOffTheLine) {
     EXPECT_EQ(static_cast<int>(kept.size()), 200) << "simd " << simd;
   }
   // The float path with the same band agrees.
-  auto as_floats = [](const ByteDescriptors& d) {
-    return NormalisedDescriptors(k::FeatureArray::From(k::DType::kUint8, d.dims, d.values));
-  };
-  EXPECT_EQ(MatchDescriptors(as_floats(a), as_floats(b), o, &*band).size(), 200u);
+  EXPECT_EQ(MatchDescriptors(AsNormalisedFloats(a), AsNormalisedFloats(b), o, &*band).size(), 200u);
   // A band of other sizes is refused.
   const auto small = EpipolarBand::Make(pa, std::vector<Eigen::Vector2d>(pb.begin(), pb.begin() + n), camera, camera,
                                         Ta, Tb, 4.0);

@@ -17,7 +17,7 @@ using simd::kRows;
 
 // panels[p][k][c] = b[16 p + c][k]; rows past m are zeros.
 std::vector<float> PackPanels(const float* b, int64_t m, int64_t dims) {
-  const int64_t panels = (m + kCols - 1) / kCols;
+  const int64_t panels = simd::PanelPadded(m) / kCols;
   std::vector<float> packed(static_cast<size_t>(panels * dims * kCols), 0.f);
   for (int64_t j = 0; j < m; ++j) {
     float* panel = packed.data() + (j / kCols) * dims * kCols + j % kCols;
@@ -87,9 +87,8 @@ struct ScaledKernel {
 void ScanNearestScaled(const float* a, int64_t n, const float* inv_norm_a, const float* b, int64_t m,
                        const float* inv_norm_b, int64_t dims, const simd::BandArrays* band, int* best,
                        float* best_sim, float* second_sim, int* col_best, float* col_best_sim) {
-  ScaledKernel kernel{{a, dims, PackPanels(b, m, dims), std::vector<float>(dims, 0.f)}, inv_norm_a, {}};
-  kernel.inv_norm_b.assign(inv_norm_b, inv_norm_b + m);
-  kernel.inv_norm_b.resize((m + kCols - 1) / kCols * kCols, 0.f);
+  const ScaledKernel kernel{{a, dims, PackPanels(b, m, dims), std::vector<float>(dims, 0.f)}, inv_norm_a,
+                            simd::PaddedToPanels(inv_norm_b, m)};
   simd::ScanTiles(n, m, kernel, band, best, best_sim, second_sim, col_best, col_best_sim);
 }
 

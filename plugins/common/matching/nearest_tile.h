@@ -22,7 +22,6 @@
 namespace locforge::matching::simd {
 
 constexpr int kRows = 6;          // rows of a per tile
-constexpr int kCols = 16;         // rows of b per tile (two 8-lane registers)
 constexpr int64_t kChunk = 1020;  // rows of a per pass (x 128 floats = 510 kB: stays in L2)
 
 __attribute__((target("avx2,fma"))) inline float Max(__m256 v) {
@@ -96,7 +95,7 @@ template <class Kernel>
 __attribute__((target("avx2,fma"))) void ScanTiles(int64_t n, int64_t m, const Kernel& kernel, const BandArrays* band,
                                                    int* best, float* best_sim, float* second_sim, int* col_best,
                                                    float* col_best_sim) {
-  const int64_t padded_m = (m + kCols - 1) / kCols * kCols;
+  const int64_t padded_m = PanelPadded(m);
   // The columns' running results, padded to whole panels.
   std::vector<float> col_sim(col_best_sim, col_best_sim + m);
   std::vector<int> col_row(col_best, col_best + m);

@@ -24,7 +24,7 @@ using simd::kRows;
 // panels[p][q][c][0..3] = b[16 p + c][4 q .. 4 q + 3] - 128; rows past m are
 // zero bytes (-128 shifted), their lanes never read back.
 std::vector<int8_t> PackPanels(const uint8_t* b, int64_t m, int64_t dims) {
-  const int64_t panels = (m + kCols - 1) / kCols;
+  const int64_t panels = simd::PanelPadded(m) / kCols;
   std::vector<int8_t> packed(static_cast<size_t>(panels * dims * kCols), static_cast<int8_t>(-128));
   for (int64_t j = 0; j < m; ++j) {
     int8_t* panel = packed.data() + (j / kCols) * dims * kCols + (j % kCols) * 4;
@@ -89,9 +89,8 @@ struct ByteKernel {
 void ScanNearest(const uint8_t* a, int64_t n, const float* inv_norm_a, const uint8_t* b, int64_t m,
                  const float* inv_norm_b, int64_t dims, const simd::BandArrays* band, int* best, float* best_sim,
                  float* second_sim, int* col_best, float* col_best_sim) {
-  ByteKernel kernel{a, dims, inv_norm_a, PackPanels(b, m, dims), {}, {}, std::vector<uint8_t>(dims, 0)};
-  kernel.inv_norm_b.assign(inv_norm_b, inv_norm_b + m);
-  kernel.inv_norm_b.resize((m + kCols - 1) / kCols * kCols, 0.f);
+  ByteKernel kernel{a, dims, inv_norm_a, PackPanels(b, m, dims), simd::PaddedToPanels(inv_norm_b, m), {},
+                    std::vector<uint8_t>(dims, 0)};
   kernel.shift_a.resize(n);
   for (int64_t i = 0; i < n; ++i) {
     int32_t sum = 0;
