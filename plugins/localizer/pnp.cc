@@ -8,6 +8,7 @@
 
 #include "absolute_pose.h"
 #include "correspondences.h"
+#include "point_uncertainty.h"
 #include "query_results.h"
 #include "locforge/kapture/kapture.h"
 #include "locforge/kapture/rigs.h"
@@ -31,6 +32,7 @@ struct PnPOptions {
   double cauchy_noise_factor = 0;  // > 0: final refinement's scale >= this x the inliers' noise sigma
   int64_t seed = 0;               // RANSAC seed (deterministic).
   bool rig_queries = false;       // Query cameras of one rig at one timestamp share a pose.
+  double point_covariance_scale = 0;  // > 0, with map_images: residuals weighed by their point's uncertainty.
   std::string keypoints_type;     // Query keypoints type; "" = the only one.
 
   static void Declare(ParamSchema<PnPOptions>& s) {
@@ -47,6 +49,10 @@ struct PnPOptions {
     s.Add("seed", &PnPOptions::seed, "RANSAC random seed").Min(0);
     s.Add("rig_queries", &PnPOptions::rig_queries, "query cameras of one rig at one timestamp share one rig pose");
     s.Add("keypoints_type", &PnPOptions::keypoints_type, "query keypoints type; empty = the only one");
+    s.Add("point_covariance_scale", &PnPOptions::point_covariance_scale,
+          "with the map_images input: each residual of the refinement whitened by its 3D point's "
+          "triangulation covariance as the query sees it, times this (the map's keypoint noise "
+          "relative to the query's; 0: every point exact)").Range(0, 100);
   }
   bool Check(std::string* why) const { return ToRansac().Check(why); }
   RansacOptions ToRansac() const {
@@ -60,6 +66,7 @@ struct PnPOptions {
     r.seed = static_cast<uint64_t>(seed);
     r.refine.cauchy_scale_px = cauchy_scale_px;
     r.refine.noise_factor = cauchy_noise_factor;
+    r.refine.point_covariance_scale = point_covariance_scale;
     return r;
   }
 };
@@ -97,10 +104,13 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
             {{"query", "kapture.dataset", "query sensors, rigs and records_camera"},
              {"query_features", "kapture.local_features", "query keypoints"},
              {"map", "kapture.reconstruction", "map points3d + observations"},
-             {"matches", "kapture.matches", "query-to-map matches"}},
+             {"matches", "kapture.matches", "query-to-map matches"},
+             {"map_images", "kapture.dataset",
+              "map image poses and cameras: each point's residual weighed by how well its views "
+              "triangulate it", LF_PORT_OPTIONAL}},
             {{"trajectories", "kapture.trajectories",
               "estimated query poses (+ failures.txt, localization_stats.csv)"}}};
-    meta.version = "1.4.0";  // 1.4.0: the final refinement is kept (1.3.0 kept it only if no inlier was lost)
+    meta.version = "1.5.0";  // 1.5.0: optional map_images: residuals weighed by point uncertainty
     return meta;
   }
   using PerItemStage::PerItemStage;
@@ -186,7 +196,8 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
         for (const int64_t id : point->second) {
           const kp::Point3d& p = points_[id];
           cs->Add(camera_index, q, id, camera.Unproject(pixel).hnormalized(),
-                  Eigen::Vector3d(p.x, p.y, p.z));
+                  Eigen::Vector3d(p.x, p.y, p.z),
+                  covariances_.empty() ? Eigen::Matrix3d::Zero() : covariances_[id]);
         }
       }
     }
@@ -238,9 +249,38 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
       for (const auto& [image, feature] : entry.features)
         observations_[image][feature].push_back(entry.point3d_id);
     }
+    if (options().point_covariance_scale > 0) {
+      if (ctx.Inputs("map_images").empty())
+        throw ParamError("point_covariance_scale needs the `map_images` input (the map's poses and cameras)");
+      LoadCovariances(ctx.Input("map_images"), map);
+    }
     ctx.Info(std::to_string(items_.size()) + " queries, " + std::to_string(points_.size()) +
              " map points, " + std::to_string(map_images_of_.size()) + " queries with matches");
     loaded_ = true;
+  }
+
+  // Each map point's triangulation covariance from the views that observe it.
+  void LoadCovariances(const fs::path& map_images, const kp::Kapture& reconstruction) {
+    const kp::Kapture map(map_images);
+    std::unordered_map<std::string, MapView> view_of;
+    for (const auto& r : map.ReadDataRecords(kp::kSensorCamera)) {
+      const auto pose = map.DevicePose(r.timestamp, r.device_id);
+      const kp::Sensor* sensor = map.sensors().Find(r.device_id);
+      if (!pose || !sensor || !sensor->camera) continue;
+      view_of[r.path] = {pose->Center(), 0.5 * (sensor->camera->fx() + sensor->camera->fy())};
+    }
+    covariances_.assign(points_.size(), Eigen::Matrix3d::Zero());
+    for (const auto& entry : reconstruction.observations()) {
+      std::vector<MapView> views;
+      for (const auto& [image, feature] : entry.features) {
+        const auto view = view_of.find(image);
+        if (view == view_of.end())
+          throw InputError(map_images.string(), 0, image, "observed map image has no pose or camera");
+        views.push_back(view->second);
+      }
+      const kp::Point3d& p = points_[entry.point3d_id];
+      covariances_[entry.point3d_id] = TriangulationCovariance(Eigen::Vector3d(p.x, p.y, p.z), views);
+    }
   }
 
   std::mutex mutex_;
@@ -250,6 +290,7 @@ class PnPLocalizer : public PerItemStage<PnPOptions> {
   std::map<std::string, QueryItem> items_;
   std::unordered_map<std::string, std::vector<std::string>> map_images_of_;
   std::vector<kp::Point3d> points_;
+  std::vector<Eigen::Matrix3d> covariances_;  // per point; empty without map_images
   std::unordered_map<std::string, std::unordered_map<int64_t, std::vector<int64_t>>> observations_;
 };
 

@@ -9,6 +9,8 @@
 #include <limits>
 #include <random>
 
+#include "point_uncertainty.h"
+
 namespace locforge::localization {
 
 namespace {
@@ -86,8 +88,8 @@ bool AlignPoints(const std::vector<Eigen::Vector3d>& world,
 
 struct ReprojectionCost {
   ReprojectionCost(const Eigen::Vector2d& observed, const Eigen::Vector3d& world,
-                   const Pose& camera_from_rig, double focal)
-      : observed_(observed), world_(world), focal_(focal) {
+                   const Pose& camera_from_rig, double focal, const Eigen::Matrix2d& whitening)
+      : observed_(observed), world_(world), focal_(focal), whitening_(whitening) {
     const Eigen::Matrix3d r = camera_from_rig.R();
     for (int i = 0; i < 3; ++i) {
       for (int j = 0; j < 3; ++j) r_cr_[3 * i + j] = r(i, j);
@@ -104,8 +106,10 @@ struct ReprojectionCost {
     for (int i = 0; i < 3; ++i)
       cam[i] = T(r_cr_[3 * i]) * rig[0] + T(r_cr_[3 * i + 1]) * rig[1] +
                T(r_cr_[3 * i + 2]) * rig[2] + T(t_cr_[i]);
-    residual[0] = T(focal_) * (cam[0] / cam[2] - T(observed_[0]));
-    residual[1] = T(focal_) * (cam[1] / cam[2] - T(observed_[1]));
+    const T e0 = T(focal_) * (cam[0] / cam[2] - T(observed_[0]));
+    const T e1 = T(focal_) * (cam[1] / cam[2] - T(observed_[1]));
+    residual[0] = T(whitening_(0, 0)) * e0 + T(whitening_(0, 1)) * e1;
+    residual[1] = T(whitening_(1, 0)) * e0 + T(whitening_(1, 1)) * e1;
     return true;
   }
   Eigen::Vector2d observed_;
@@ -113,6 +117,7 @@ struct ReprojectionCost {
   double r_cr_[9];
   double t_cr_[3];
   double focal_;
+  Eigen::Matrix2d whitening_;
 };
 
 std::vector<int> InliersOf(const std::vector<Correspondence>& cs,
@@ -289,9 +294,14 @@ bool RefinePose(const std::vector<Correspondence>& correspondences,
   ceres::CauchyLoss loss(options.cauchy_scale_px);
   for (const auto& c : correspondences) {
     const RigCamera& cam = cameras[c.camera];
+    const Eigen::Matrix2d whitening =
+        c.world_covariance.isZero(0) || options.point_covariance_scale <= 0
+            ? Eigen::Matrix2d::Identity()
+            : ReprojectionWhitening(cam.camera_from_rig * *rig_from_world, cam.focal, c.world,
+                                    options.point_covariance_scale * c.world_covariance);
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 4, 3>(
                                  new ReprojectionCost(c.normalized, c.world, cam.camera_from_rig,
-                                                      cam.focal)),
+                                                      cam.focal, whitening)),
                              &loss, q, t);
   }
   problem.SetManifold(q, new ceres::QuaternionManifold);

@@ -24,6 +24,10 @@ struct Correspondence {
   Eigen::Vector2d normalized = Eigen::Vector2d::Zero();  // undistorted, z = 1 plane
   Eigen::Vector3d world = Eigen::Vector3d::Zero();
   int camera = 0;  // index into the rig's cameras
+  // How well the map knows `world` (point_uncertainty.h: world units^2 per
+  // px^2 of observation noise); zero: exactly. The refinement weighs each
+  // residual by it; RANSAC's inlier test does not.
+  Eigen::Matrix3d world_covariance = Eigen::Matrix3d::Zero();
 };
 
 struct RigCamera {
@@ -53,12 +57,16 @@ struct RefineOptions {
   // down-weighted like outliers (2.385: the Cauchy loss's 95 %-efficiency
   // constant for Gaussian noise). 0: cauchy_scale_px alone.
   double noise_factor = 0.0;
+  // Multiplies every point's world_covariance: the map's observation noise
+  // relative to the query's (0: every point exact).
+  double point_covariance_scale = 1.0;
   int max_iterations = 50;
   bool Check(std::string* why) const;
 };
 
 // Minimises the Cauchy-robustified reprojection error over T_rig_world
-// (intrinsics and rig fixed). Returns false when Ceres reports no usable
+// (intrinsics and rig fixed), each residual whitened by its point's
+// uncertainty as seen from the starting pose (ReprojectionWhitening). Returns false when Ceres reports no usable
 // solution (the pose is left unchanged then).
 bool RefinePose(const std::vector<Correspondence>& correspondences,
                 const std::vector<RigCamera>& cameras, const RefineOptions& options,

@@ -21,11 +21,13 @@ class CorrespondenceSet {
   // Adds query keypoint `keypoint` of camera `camera` (at `normalized`) with 3D
   // point `point_id` (at `world`); false when that triple is already in.
   bool Add(int camera, int64_t keypoint, int64_t point_id, const Eigen::Vector2d& normalized,
-           const Eigen::Vector3d& world) {
+           const Eigen::Vector3d& world,
+           const Eigen::Matrix3d& world_covariance = Eigen::Matrix3d::Zero()) {
     if (!seen_.insert({camera, keypoint, point_id}).second) return false;
     Correspondence c;
     c.normalized = normalized;
     c.world = world;
+    c.world_covariance = world_covariance;
     c.camera = camera;
     correspondences_.push_back(c);
     return true;
