@@ -88,7 +88,8 @@ class MutualNnStage : public PerItemStage<MutualNnOptions> {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!features_) {
       features_ = Features::Open(ctx);
-      for (const auto& p : ctx.Inputs("images")) geometry_.Add(p);
+      if (options().epipolar_band_px > 0)  // the poses serve only the band
+        for (const auto& p : ctx.Inputs("images")) geometry_.Add(p);
     }
     return *features_;
   }
