@@ -66,8 +66,9 @@ struct RefineOptions {
 
 // Minimises the Cauchy-robustified reprojection error over T_rig_world
 // (intrinsics and rig fixed), each residual whitened by its point's
-// uncertainty as seen from the starting pose (ReprojectionWhitening). Returns false when Ceres reports no usable
-// solution (the pose is left unchanged then).
+// uncertainty as seen from the starting pose (ReprojectionWhitening).
+// Returns false when Ceres reports no usable solution (the pose is left
+// unchanged then).
 bool RefinePose(const std::vector<Correspondence>& correspondences,
                 const std::vector<RigCamera>& cameras, const RefineOptions& options,
                 Pose* rig_from_world);
