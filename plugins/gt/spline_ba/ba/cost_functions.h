@@ -1,7 +1,8 @@
 // Residuals of the spline bundle adjustment (paper section 3.2), as Ceres
 // autodiff functors. Parameter blocks:
-//   image rotation q_world_camera  [qx qy qz qw] (EigenQuaternionManifold)
-//   image translation t_world_camera [3]
+//   image pose T_world_camera [qx qy qz qw tx ty tz] (quaternion x R^3): one
+//     6-DoF block, so the reduced camera system has one cell per image pair
+//     instead of four (issue 40: fewer cell look-ups and locks per point)
 //   point [3], intrinsics [camera_model::NumParams(model)] (COLMAP order)
 //   control pose [qx qy qz qw tx ty tz] (see spline.h)
 //   extrinsic rotation q_body_camera [qx qy qz qw]; its translation is a constant.
@@ -24,10 +25,9 @@ struct ReprojectionError {
   explicit ReprojectionError(const Eigen::Vector2d& xy) : observed(xy) {}
 
   template <typename T>
-  bool operator()(const T* q_wc, const T* t_wc, const T* point, const T* intrinsics,
-                  T* residual) const {
-    const Eigen::Map<const Eigen::Quaternion<T>> q(q_wc);
-    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t(t_wc);
+  bool operator()(const T* pose_wc, const T* point, const T* intrinsics, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(pose_wc);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t(pose_wc + 4);
     const Eigen::Map<const Eigen::Matrix<T, 3, 1>> X(point);
     const Eigen::Matrix<T, 3, 1> p = q.conjugate() * (X - t);
     if (p(2) <= T(0)) return false;  // behind the camera: reject the step
@@ -39,7 +39,7 @@ struct ReprojectionError {
   }
 
   static ceres::CostFunction* Create(const Eigen::Vector2d& xy) {
-    return new ceres::AutoDiffCostFunction<ReprojectionError, 2, 4, 3, 3, camera_model::NumParams(kModel)>(
+    return new ceres::AutoDiffCostFunction<ReprojectionError, 2, 7, 3, camera_model::NumParams(kModel)>(
         new ReprojectionError(xy));
   }
   Eigen::Vector2d observed;
@@ -79,16 +79,14 @@ struct SplinePoseError {
       : u(u), dt(dt), t_bc(t_bc), sqrt_info(sqrt_info) {}
 
   template <typename T>
-  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* q_wc,
-                  const T* t_wc, const T* q_bc, const T* time_offset, T* residual) const {
+  bool operator()(const T* c0, const T* c1, const T* c2, const T* c3, const T* pose_wc, const T* q_bc,
+                  const T* time_offset, T* residual) const {
     const T u_offset = T(u) + time_offset[0] / T(dt);
     const PoseT<T> T_wb = EvaluateSegment(c0, c1, c2, c3, u_offset);
     PoseT<T> T_bc;
     T_bc.q = Eigen::Map<const Eigen::Quaternion<T>>(q_bc);
     T_bc.t = t_bc.cast<T>();
-    PoseT<T> T_wc;
-    T_wc.q = Eigen::Map<const Eigen::Quaternion<T>>(q_wc);
-    T_wc.t = Eigen::Map<const Eigen::Matrix<T, 3, 1>>(t_wc);
+    const PoseT<T> T_wc = PoseT<T>::FromArray(pose_wc);
     const Eigen::Matrix<T, 6, 1> e = LogSE3T(T_wc.Inverse() * T_wb * T_bc);
     for (int k = 0; k < 6; ++k) residual[k] = T(sqrt_info(k)) * e(k);
     return true;
@@ -96,7 +94,7 @@ struct SplinePoseError {
 
   static ceres::CostFunction* Create(double u, double dt, const Eigen::Vector3d& t_bc,
                                      const Eigen::Matrix<double, 6, 1>& sqrt_info) {
-    return new ceres::AutoDiffCostFunction<SplinePoseError, 6, 7, 7, 7, 7, 4, 3, 4, 1>(
+    return new ceres::AutoDiffCostFunction<SplinePoseError, 6, 7, 7, 7, 7, 7, 4, 1>(
         new SplinePoseError(u, dt, t_bc, sqrt_info));
   }
   double u, dt;

@@ -79,7 +79,7 @@ std::vector<double> PoseArray(const Pose& p) {
 TEST(Derivatives, ReprojectionErrorOfEveryModel) {
   std::mt19937 rng(4);
   std::normal_distribution<double> n(0, 1);
-  ceres::EigenQuaternionManifold quaternion;
+  ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>> se3;
   const std::vector<std::pair<CameraModelId, std::vector<double>>> cameras = {
       {CameraModelId::kSimplePinhole, {400, 320, 250}},
       {CameraModelId::kPinhole, {400, 410, 320, 250}},
@@ -92,8 +92,8 @@ TEST(Derivatives, ReprojectionErrorOfEveryModel) {
       const Eigen::Vector3d X = T_wc * Eigen::Vector3d(0.5 * n(rng), 0.5 * n(rng), 3 + std::abs(n(rng)));
       std::unique_ptr<ceres::CostFunction> f(CreateReprojectionError(model, Eigen::Vector2d(300, 200)));
       ASSERT_TRUE(f);
-      const Blocks x = {QuatArray(T_wc.q), {T_wc.t.x(), T_wc.t.y(), T_wc.t.z()}, {X.x(), X.y(), X.z()}, params};
-      EXPECT_LT(MaxRelativeJacobianError(*f, x, {&quaternion, nullptr, nullptr, nullptr}), 1e-6)
+      const Blocks x = {PoseArray(T_wc), {X.x(), X.y(), X.z()}, params};
+      EXPECT_LT(MaxRelativeJacobianError(*f, x, {&se3, nullptr, nullptr}), 1e-6)
           << static_cast<int>(model);
     }
   }
@@ -127,10 +127,8 @@ TEST(Derivatives, SplinePoseAndSampleErrors) {
     const Vector6d w = SqrtInformation(0.002, 0.01);
     std::unique_ptr<ceres::CostFunction> prior(SplinePoseError::Create(u, 0.1, T_bc.t, w));
     const Blocks x = {PoseArray(c[0]), PoseArray(c[1]), PoseArray(c[2]), PoseArray(c[3]),
-                      QuatArray(T_wc.q), {T_wc.t.x(), T_wc.t.y(), T_wc.t.z()}, QuatArray(T_bc.q),
-                      {degenerate ? 0.0 : 0.004 * n(rng)}};
-    EXPECT_LT(MaxRelativeJacobianError(*prior, x, {&se3, &se3, &se3, &se3, &quaternion, nullptr, &quaternion, nullptr}),
-              1e-6)
+                      PoseArray(T_wc), QuatArray(T_bc.q), {degenerate ? 0.0 : 0.004 * n(rng)}};
+    EXPECT_LT(MaxRelativeJacobianError(*prior, x, {&se3, &se3, &se3, &se3, &se3, &quaternion, nullptr}), 1e-6)
         << trial;
     std::unique_ptr<ceres::CostFunction> sample(
         SplineSampleError::Create(u, spline.Evaluate(u) * ExpSE3(random_twist(0.01)), w));

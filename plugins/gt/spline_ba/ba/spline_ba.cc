@@ -164,10 +164,9 @@ Eigen::MatrixXd IntrinsicsBasis(CameraModelId model, const std::vector<double>& 
 // `large` ground truth differed by 0.2 mm; test SameBitsWhateverTheHeapLayout).
 struct Parameters {
   explicit Parameters(std::pmr::memory_resource* memory = std::pmr::get_default_resource())
-      : image_q(memory), image_t(memory), points(memory), intrinsics(memory), q_body_camera(memory),
+      : image_pose(memory), points(memory), intrinsics(memory), q_body_camera(memory),
         time_offsets(memory), controls(memory), alignments(memory), log_scales(memory) {}
-  std::pmr::vector<std::array<double, 4>> image_q;  // q_world_camera, x y z w
-  std::pmr::vector<std::array<double, 3>> image_t;  // t_world_camera
+  std::pmr::vector<std::array<double, 7>> image_pose;  // T_world_camera [qx qy qz qw tx ty tz]
   std::pmr::vector<std::array<double, 3>> points;
   std::pmr::vector<std::pmr::vector<double>> intrinsics;
   std::pmr::vector<std::array<double, 4>> q_body_camera;
@@ -181,7 +180,7 @@ struct Parameters {
 // Bytes that Pack and the later per-trajectory blocks (alignments, log
 // scales) take from the buffer, with room for each allocation's alignment.
 size_t PackedBytes(const Parameters& x) {
-  size_t doubles = 4 * x.image_q.size() + 3 * x.image_t.size() + 3 * x.points.size() + 4 * x.q_body_camera.size() +
+  size_t doubles = 7 * x.image_pose.size() + 3 * x.points.size() + 4 * x.q_body_camera.size() +
                    x.time_offsets.size() + (7 + 1) * x.controls.size();
   for (const auto& k : x.intrinsics) doubles += k.size();
   for (const auto& c : x.controls) doubles += 7 * c.size();
@@ -194,8 +193,7 @@ size_t PackedBytes(const Parameters& x) {
 // Copies every block into `to`, whose memory resource hands out addresses in
 // allocation order: one allocation per container, in this fixed order.
 void Pack(const Parameters& from, Parameters* to) {
-  to->image_q.assign(from.image_q.begin(), from.image_q.end());
-  to->image_t.assign(from.image_t.begin(), from.image_t.end());
+  to->image_pose.assign(from.image_pose.begin(), from.image_pose.end());
   to->points.assign(from.points.begin(), from.points.end());
   to->intrinsics.reserve(from.intrinsics.size());
   for (const auto& k : from.intrinsics) to->intrinsics.emplace_back(k.begin(), k.end());
@@ -207,11 +205,7 @@ void Pack(const Parameters& from, Parameters* to) {
 }
 
 void CopyIn(const BAProblem& p, Parameters* x) {
-  for (const auto& im : p.images) {
-    const Eigen::Quaterniond& q = im.T_world_camera.q;
-    x->image_q.push_back({q.x(), q.y(), q.z(), q.w()});
-    x->image_t.push_back({im.T_world_camera.t.x(), im.T_world_camera.t.y(), im.T_world_camera.t.z()});
-  }
+  for (const auto& im : p.images) PoseToArray(im.T_world_camera, x->image_pose.emplace_back().data());
   for (const auto& pt : p.points) x->points.push_back({pt.xyz.x(), pt.xyz.y(), pt.xyz.z()});
   for (const auto& s : p.sensors) {
     x->intrinsics.emplace_back(s.camera.params.begin(), s.camera.params.end());
@@ -249,11 +243,7 @@ void FitSplines(const BAProblem& p, double knot_spacing_s, Parameters* x) {
 }
 
 void CopyOut(const Parameters& x, bool splines, BAProblem* p, SplineBAResult* result) {
-  for (size_t i = 0; i < p->images.size(); ++i) {
-    const auto& q = x.image_q[i];
-    const auto& t = x.image_t[i];
-    p->images[i].T_world_camera = Pose(Eigen::Quaterniond(q[3], q[0], q[1], q[2]), Eigen::Vector3d(t[0], t[1], t[2]));
-  }
+  for (size_t i = 0; i < p->images.size(); ++i) p->images[i].T_world_camera = PoseFromArray(x.image_pose[i].data());
   for (size_t k = 0; k < p->points.size(); ++k)
     p->points[k].xyz = Eigen::Vector3d(x.points[k][0], x.points[k][1], x.points[k][2]);
   for (size_t s = 0; s < p->sensors.size(); ++s) {
@@ -333,7 +323,7 @@ struct Assembly {
   ceres::EigenQuaternionManifold quaternion;
   ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>> se3;
   ceres::CauchyLoss cauchy;
-  std::unique_ptr<ceres::SubsetManifold> scale_gauge;
+  std::unique_ptr<ceres::Manifold> scale_gauge;
   std::vector<std::unique_ptr<LinearSubspaceManifold>> restricted_intrinsics;
   std::vector<bool> image_observed;   // by image: has a reprojection residual
   std::vector<bool> sensor_in_prior;  // by sensor: an image of it has a spline pose residual
@@ -361,7 +351,7 @@ void AddReprojectionErrors(Assembly& a) {
     if (!InFront(a.problem, o, &xy)) continue;
     const auto& im = a.problem.images[o.image];
     a.ceres.AddResidualBlock(CreateReprojectionError(a.problem.sensors[im.sensor].camera.model, o.xy), &a.cauchy,
-                             a.x.image_q[o.image].data(), a.x.image_t[o.image].data(), a.x.points[o.point].data(),
+                             a.x.image_pose[o.image].data(), a.x.points[o.point].data(),
                              a.x.intrinsics[im.sensor].data());
     a.image_observed[o.image] = true;
     ++a.result.num_observations;
@@ -384,7 +374,7 @@ void AddSplinePoseErrors(Assembly& a) {
     auto& c = x.controls[im.trajectory];
     a.ceres.AddResidualBlock(
         SplinePoseError::Create(u, spline.dt, a.problem.sensors[im.sensor].T_body_camera.t, w), nullptr, c[s].data(),
-        c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), x.image_q[i].data(), x.image_t[i].data(),
+        c[s + 1].data(), c[s + 2].data(), c[s + 3].data(), x.image_pose[i].data(),
         x.q_body_camera[im.sensor].data(), &x.time_offsets[im.sensor]);
     a.sensor_in_prior[im.sensor] = true;
     ++a.result.num_prior_residuals;
@@ -495,8 +485,7 @@ void HoldImageGauge(Assembly& a) {
   const std::vector<bool>& observed = a.image_observed;
   const auto& images = a.problem.images;
   const size_t first = std::find(observed.begin(), observed.end(), true) - observed.begin();
-  a.ceres.SetParameterBlockConstant(a.x.image_q[first].data());
-  a.ceres.SetParameterBlockConstant(a.x.image_t[first].data());
+  a.ceres.SetParameterBlockConstant(a.x.image_pose[first].data());
   const Eigen::Vector3d c0 = images[first].T_world_camera.t;
   size_t far = first;
   double best = 0;
@@ -508,8 +497,9 @@ void HoldImageGauge(Assembly& a) {
   if (far != first) {
     int axis;
     (images[far].T_world_camera.t - c0).cwiseAbs().maxCoeff(&axis);
-    a.scale_gauge = std::make_unique<ceres::SubsetManifold>(3, std::vector<int>{axis});
-    a.ceres.SetManifold(a.x.image_t[far].data(), a.scale_gauge.get());
+    a.scale_gauge = std::make_unique<ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::SubsetManifold>>(
+        ceres::EigenQuaternionManifold(), ceres::SubsetManifold(3, std::vector<int>{axis}));
+    a.ceres.SetManifold(a.x.image_pose[far].data(), a.scale_gauge.get());
   }
 }
 
@@ -562,7 +552,7 @@ void AddTimeOffsetGauge(Assembly& a) {
 // Manifolds and what is held constant.
 void SetManifoldsAndConstants(Assembly& a, bool splines) {
   for (size_t i = 0; i < a.problem.images.size(); ++i)
-    if (a.image_observed[i]) a.ceres.SetManifold(a.x.image_q[i].data(), &a.quaternion);
+    if (a.image_observed[i]) a.ceres.SetManifold(a.x.image_pose[i].data(), &a.se3);
   if (!splines && a.options.fix_gauge) HoldImageGauge(a);
   for (size_t s = 0; s < a.problem.sensors.size(); ++s) {
     SetIntrinsics(a, s);
