@@ -44,6 +44,8 @@ std::string DescribeParam(const ParamDecl& d) {
   s << "    " << d.name << "  (" << ParamTypeName(d.type) << ")";
   if (d.required())
     s << "  required";
+  else if (d.derived() && d.default_value.empty())
+    s << "  default: derived by the stage (see below)";
   else
     s << "  default: " << (d.default_value.empty() ? "\"\"" : Shown(d.default_value, d.type));
   if (d.has_min || d.has_max) {

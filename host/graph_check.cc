@@ -76,6 +76,10 @@ bool CanonicalParam(const std::string& node, const ParamDecl& decl, const ParamV
   }
   std::vector<std::string> items = given.value.items;
   if (items.empty() && !IsListType(decl.type)) items.push_back("");
+  if (decl.derived() && !IsListType(decl.type) && items.front().empty()) {
+    *canonical = "";  // "" given (e.g. a variable left empty): the stage derives the value
+    return true;
+  }
   if (decl.type == LF_PARAM_PATH) {
     fs::path p = items.empty() ? fs::path() : fs::path(items.front());
     if (!p.empty() && p.is_relative()) p = given.base_dir / p;

@@ -276,6 +276,24 @@ nodes:
       << e;
 }
 
+TEST(GraphCheck, DerivedParamLeftEmptyStaysEmptyAndAGivenOneIsChecked) {
+  std::vector<ResolvedGraph> out;
+  const std::string graph = "locforge: 1\nvars: {w: \"\"}\nnodes:\n  a: {stage: source/preset, params: {width: \"${w}\"}}\n";
+  EXPECT_EQ(Check(graph, {}, &out), "");
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].nodes[0].params.at("width"), "");  // the stage derives it
+  out.clear();
+  EXPECT_EQ(Check("locforge: 1\nnodes:\n  a: {stage: source/preset}\n", {}, &out), "");
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].nodes[0].params.at("width"), "");
+  out.clear();
+  EXPECT_EQ(Check(graph, {{"w", "2.5"}}, &out), "");
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].nodes[0].params.at("width"), FormatDouble(2.5));
+  const std::string e = Check(graph, {{"w", "0.5"}});
+  EXPECT_NE(e.find("parameter 'width' (double): value 0.5 is out of range [1, +inf]"), std::string::npos) << e;
+}
+
 TEST(GraphCheck, PluginCheckRefusal) {
   const std::string e =
       Check("locforge: 1\nnodes:\n  a: {stage: source/images, params: {mode: bad}}\n");

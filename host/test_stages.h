@@ -45,6 +45,11 @@ class FakeStages {
     Add("source/images", LF_STAGE_RUNNABLE, {count, verbose, mode}, {},
         {{"images", "kapture.dataset"}});
     Add("source/folder", LF_STAGE_RUNNABLE, {root}, {}, {{"images", "kapture.dataset"}});
+    // A preset-driven source: "width" defaults to the preset's ("" = not given).
+    ParamDecl width{"width", LF_PARAM_DOUBLE, LF_PARAM_DERIVED, "", "width (default: the preset's)"};
+    width.has_min = true;
+    width.min_value = 1;
+    Add("source/preset", LF_STAGE_RUNNABLE, {width}, {}, {{"images", "kapture.dataset"}});
     Add("features/sift", LF_STAGE_RUNNABLE | LF_STAGE_PER_ITEM, {count, scales},
         {{"images", "kapture.dataset"}}, {{"features", "kapture.features"}});
     Add("match/pairs", LF_STAGE_RUNNABLE, {},

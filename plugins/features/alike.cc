@@ -38,10 +38,8 @@ class AlikeStage : public PerImageStage<AlikeOptions> {
     const AlikeFeatures f = ExtractAlike(Image(ctx, image), options());
     char line[160];
     std::snprintf(line, sizeof line, "%d keypoints, network %.3f s", f.count(), f.network_seconds);
-    ctx.Debug(image + ": " + line);
-    k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image, AlikeInfos(options(), f.dim),
-                               k::FeatureArray::From(k::DType::kFloat32, 2, f.keypoints),
-                               k::FeatureArray::From(k::DType::kFloat32, f.dim, f.descriptors));
+    WriteFloatFeatures(ctx, image, line, options().type, AlikeInfos(options(), f.dim), 2, f.keypoints, f.dim,
+                       f.descriptors);
   }
 
   void Finalize(RunContext& ctx) override {

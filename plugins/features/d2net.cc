@@ -43,12 +43,9 @@ class D2netStage : public PerImageStage<D2netOptions> {
     char line[160];
     std::snprintf(line, sizeof line, "%d keypoints, network %.3f s over %d levels", f.count(),
                   f.network_seconds, f.levels);
-    ctx.Debug(image + ": " + line);
     const int channels = f.channels > 0 ? f.channels : ProbeChannels();
-    k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image,
-                               D2netInfos(options(), channels),
-                               k::FeatureArray::From(k::DType::kFloat32, 3, f.keypoints),
-                               k::FeatureArray::From(k::DType::kFloat32, channels, f.descriptors));
+    WriteFloatFeatures(ctx, image, line, options().type, D2netInfos(options(), channels), 3, f.keypoints, channels,
+                       f.descriptors);
     std::lock_guard<std::mutex> lock(mutex_);
     channels_ = channels;
   }

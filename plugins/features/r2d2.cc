@@ -42,10 +42,7 @@ class R2d2Stage : public PerImageStage<R2d2Options> {
     char line[160];
     std::snprintf(line, sizeof line, "%d keypoints, network %.3f s over %d scales", f.count(),
                   f.network_seconds, f.scales);
-    ctx.Debug(image + ": " + line);
-    k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image, R2d2Infos(options()),
-                               k::FeatureArray::From(k::DType::kFloat32, 3, f.keypoints),
-                               k::FeatureArray::From(k::DType::kFloat32, 128, f.descriptors));
+    WriteFloatFeatures(ctx, image, line, options().type, R2d2Infos(options()), 3, f.keypoints, 128, f.descriptors);
   }
 
   void Finalize(RunContext& ctx) override {

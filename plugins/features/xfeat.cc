@@ -39,10 +39,7 @@ class XfeatStage : public PerImageStage<XfeatOptions> {
     char line[160];
     std::snprintf(line, sizeof line, "%d keypoints, network %.3f s at %dx%d", f.count(),
                   f.network_seconds, f.network_width, f.network_height);
-    ctx.Debug(image + ": " + line);
-    k::WriteImageLocalFeatures(ctx.output_dir(), options().type, image, XfeatInfos(options()),
-                               k::FeatureArray::From(k::DType::kFloat32, 2, f.keypoints),
-                               k::FeatureArray::From(k::DType::kFloat32, 64, f.descriptors));
+    WriteFloatFeatures(ctx, image, line, options().type, XfeatInfos(options()), 2, f.keypoints, 64, f.descriptors);
   }
 
   void Finalize(RunContext& ctx) override {

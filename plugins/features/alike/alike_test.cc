@@ -15,65 +15,14 @@
 #include <sstream>
 
 #include "alike.h"
+#include "learned_reference_testing.h"
 #include "testing.h"
 
 namespace locforge::learned {
 namespace {
 
 namespace fs = std::filesystem;
-
-#define LOCFORGE_LEARNED_MODEL_OR_SKIP(var, file)                                            \
-  const fs::path var = fs::path(LOCFORGE_LEARNED_MODEL_DIR) / (file);                        \
-  if (!fs::exists(var)) {                                                                    \
-    if (::locforge::testing::SharedRequired())                                               \
-      FAIL() << var << " was not exported (needs python3-torch, python3-onnx and ../shared) " \
-                "and LOCFORGE_REQUIRE_SHARED=1";                                             \
-    GTEST_SKIP() << var << " was not exported: install python3-torch and rebuild";           \
-  }
-
-template <typename T>
-std::vector<T> ReadRaw(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  EXPECT_TRUE(in.good()) << file;
-  in.seekg(0, std::ios::end);
-  std::vector<T> v(static_cast<size_t>(in.tellg()) / sizeof(T));
-  in.seekg(0);
-  in.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(T)));
-  return v;
-}
-
-std::vector<float> ReadHalf(const fs::path& file) {
-  const std::vector<uint16_t> h = ReadRaw<uint16_t>(file);
-  cv::Mat half(1, static_cast<int>(h.size()), CV_16F, const_cast<uint16_t*>(h.data())), full;
-  half.convertTo(full, CV_32F);
-  return std::vector<float>(full.begin<float>(), full.end<float>());
-}
-
-std::map<std::string, std::string> ReadMeta(const fs::path& file) {
-  std::ifstream in(file);
-  EXPECT_TRUE(in.good()) << file;
-  std::map<std::string, std::string> meta;
-  std::string line;
-  while (std::getline(in, line)) {
-    const size_t space = line.find(' ');
-    if (space != std::string::npos) meta[line.substr(0, space)] = line.substr(space + 1);
-  }
-  return meta;
-}
-
-cv::Mat ReferenceImage(const fs::path& image, const std::map<std::string, std::string>& meta) {
-  const cv::Mat bgr = cv::imread(image.string(), cv::IMREAD_COLOR);
-  EXPECT_FALSE(bgr.empty()) << image;
-  int x, y, w, h;
-  char comma;
-  std::istringstream(meta.at("crop")) >> x >> comma >> y >> comma >> w >> comma >> h;
-  cv::Mat rgb;
-  cv::cvtColor(bgr(cv::Rect(x, y, w, h)), rgb, cv::COLOR_BGR2RGB);
-  const cv::Scalar sum = cv::sum(rgb);
-  EXPECT_EQ(static_cast<long long>(sum[0] + sum[1] + sum[2]), std::stoll(meta.at("pixel_sum")))
-      << "OpenCV decodes " << image << " differently from the recipe script's PIL";
-  return rgb;
-}
+using namespace ::locforge::learned::reference;  // learned_reference_testing.h
 
 class AlikeReference : public ::testing::TestWithParam<std::string> {};
 
@@ -103,33 +52,16 @@ TEST_P(AlikeReference, ReproducesTheAuthorsExtractionOnARealPhotograph) {
   EXPECT_EQ(f.count(), std::stoi(meta.at("keypoints")));
   for (int i = 1; i < f.count(); ++i) ASSERT_LE(f.scores[i], f.scores[i - 1]);
 
-  const int checked = static_cast<int>(stored) * 9 / 10;
-  int matched = 0, cosine_ok = 0;
-  double worst_cosine = 1, max_distance = 0;
-  for (int i = 0; i < checked; ++i) {
-    const float* p = &f.raw_keypoints[2 * i];
-    int best = -1;
-    double best_d2 = 1.0 + 1e-6;
-    for (size_t j = 0; j < stored; ++j) {
-      const double dx = p[0] - ref_kpt[2 * j], dy = p[1] - ref_kpt[2 * j + 1];
-      if (dx * dx + dy * dy <= best_d2) best_d2 = dx * dx + dy * dy, best = static_cast<int>(j);
-    }
-    if (best < 0) continue;
-    ++matched;
-    max_distance = std::max(max_distance, std::sqrt(best_d2));
-    double dot = 0;
-    for (int k = 0; k < dim; ++k) dot += double(f.descriptors[dim * i + k]) * ref_desc[dim * best + k];
-    worst_cosine = std::min(worst_cosine, dot);
-    cosine_ok += dot >= 0.99;
-  }
+  const ReferenceAgreement a =
+      CompareWithReference(f.raw_keypoints, f.descriptors, dim, ref_kpt, ref_desc, static_cast<int>(stored) * 9 / 10);
   std::cout << "alike-" << size << " on fountain-P11 0000.jpg [" << meta.at("crop") << "]: "
             << f.count() << " keypoints (" << dim << "-D), network " << f.network_seconds
-            << " s, extraction " << seconds << " s; " << matched << " / " << checked
-            << " of our best at a reference keypoint (<= 1 px, max " << max_distance << " px), "
-            << cosine_ok << " with descriptor cosine >= 0.99 (worst " << worst_cosine << ")\n";
-  EXPECT_GE(matched, checked * 99 / 100);
-  EXPECT_GE(cosine_ok, checked * 99 / 100);
-  EXPECT_LT(max_distance, 0.01);  // sub-pixel positions, not just the same pixel
+            << " s, extraction " << seconds << " s; " << a.matched << " / " << a.checked
+            << " of our best at a reference keypoint (<= 1 px, max " << a.max_distance << " px), "
+            << a.cosine_ok << " with descriptor cosine >= 0.99 (worst " << a.worst_cosine << ")\n";
+  EXPECT_GE(a.matched, a.checked * 99 / 100);
+  EXPECT_GE(a.cosine_ok, a.checked * 99 / 100);
+  EXPECT_LT(a.max_distance, 0.01);  // sub-pixel positions, not just the same pixel
   for (int i = 0; i < f.count(); ++i) {
     ASSERT_FLOAT_EQ(f.keypoints[2 * i], f.raw_keypoints[2 * i] + 0.5f);
     // NMS keeps pixels 3 .. w - 3; the refinement moves them by at most 2 px.

@@ -11,21 +11,14 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "learned_reference_testing.h"
 #include "r2d2.h"
 #include "testing.h"
 
 namespace locforge::learned {
 namespace {
 
-std::vector<float> ReadFloats(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  EXPECT_TRUE(in.good()) << file;
-  in.seekg(0, std::ios::end);
-  std::vector<float> v(static_cast<size_t>(in.tellg()) / sizeof(float));
-  in.seekg(0);
-  in.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(float)));
-  return v;
-}
+std::vector<float> ReadFloats(const std::filesystem::path& file) { return reference::ReadRaw<float>(file); }
 
 // 8-bit RGB (empty when unreadable).
 cv::Mat ReadRgb(const std::filesystem::path& file) {

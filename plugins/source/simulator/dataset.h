@@ -38,6 +38,39 @@ struct SimOptions {
   std::string layout = "splits";    // splits: mapping kapture at the root, queries in validation/, test/; single: one kapture
   int texture_size = 512;           // texels per texture side
   bool Check(std::string* why) const;
+
+  // The options a graph sets, declared once (source/simulator binds them in
+  // place over a preset: Derived() ones keep the preset's value unless given).
+  template <typename Schema>
+  static void Declare(Schema& s) {
+    s.Add("seed", &SimOptions::seed, "Random seed of the floor, routes, people and noise").Min(0);
+    s.Add("crowdedness", &SimOptions::crowdedness, "People per 100 m^2 of floor (default: the preset's)")
+        .Range(0, 50).Derived();
+    s.Add("query_crowdedness", &SimOptions::query_crowdedness,
+          "People per 100 m^2 in the query sequences only, the mapping ones unchanged (-1: as crowdedness)")
+        .Range(-1, 50);
+    s.Add("scale", &SimOptions::rig, &RigOptions::image_scale,
+          "Image resolution factor of every camera, 1 = full sensor (default: the preset's)")
+        .Range(1e-6, 1).Derived();
+    s.Add("mapping_sequences", &SimOptions::mapping_sequences, "Mapping sequences (default: the preset's)")
+        .Range(1, 1000).Derived();
+    s.Add("validation_sequences", &SimOptions::validation_sequences,
+          "Query sequences in the validation area (default: the preset's)").Range(0, 1000).Derived();
+    s.Add("test_sequences", &SimOptions::test_sequences,
+          "Query sequences in the test area (default: the preset's)").Range(0, 1000).Derived();
+    s.Add("scene_file", &SimOptions::scene_file, "YAML floor plan (README); empty: generated from the seed")
+        .Path();
+    s.Add("layout", &SimOptions::layout,
+          "splits: mapping kapture at the root, queries in validation/ and test/; single: one kapture")
+        .Choices({"splits", "single"});
+    s.Add("image_format", &SimOptions::image_format, "Image files").Choices({"jpg", "png"});
+    s.Add("lidar", &SimOptions::lidar, "Write the two LiDARs' scans (PCD)");
+    s.Add("cameras", &SimOptions::cameras,
+          "Render and write the camera images (false: LiDAR and wheel records only, e.g. for LiDAR sweeps)");
+    s.Add("masks", &SimOptions::masks, "Write the true per-pixel person masks");
+    s.Add("depth", &SimOptions::depth,
+          "Write the true depth maps: truth/depth/<split>/<seq>/<camera>/<timestamp>.depth (float32 z in m, 0: none)");
+  }
 };
 
 // "tiny" (unit tests, seconds), "small" (the demo), "large" (thousands of images).

@@ -66,6 +66,8 @@ struct ParamDecl {
   std::string component_interface;  // LF_PARAM_COMPONENT: interface required ("" : any)
 
   bool required() const { return (flags & LF_PARAM_REQUIRED) != 0; }
+  // The default is "": the stage derives the value (a preset's) unless one is given.
+  bool derived() const { return (flags & LF_PARAM_DERIVED) != 0; }
 };
 
 // A component chosen in the graph: the stage id of an in-process component
@@ -171,6 +173,7 @@ struct IntParamTraits {
 template <> struct ParamTraits<int> : IntParamTraits<int> {};
 template <> struct ParamTraits<int64_t> : IntParamTraits<int64_t> {};
 template <> struct ParamTraits<uint32_t> : IntParamTraits<uint32_t> {};
+template <> struct ParamTraits<uint64_t> : IntParamTraits<uint64_t> {};
 template <> struct ParamTraits<ComponentSpec> {
   static constexpr LfParamType kType = LF_PARAM_COMPONENT;
   static std::string Format(const ComponentSpec& v) { return FormatComponent(v); }
@@ -239,6 +242,14 @@ class ParamBuilder {
     decl_->choices = std::move(choices);
     return *this;
   }
+  // Not given, the value stays what the stage derived (the preset's, see
+  // ParamSchema::AddPreset): the declared default is "" instead of the
+  // in-class value, which a preset overlays.
+  ParamBuilder& Derived() {
+    decl_->flags |= LF_PARAM_DERIVED;
+    decl_->default_value.clear();
+    return *this;
+  }
   // Does not change results (threads, verbosity): left out of cache keys.
   ParamBuilder& NoCacheKey() { decl_->flags |= LF_PARAM_NO_CACHE_KEY; return *this; }
   // A component parameter: the chosen stage must implement `interface`
@@ -284,6 +295,23 @@ class ParamSchema {
         name, doc, [outer, inner](Options& o) -> double& { return (o.*outer).*inner; });
   }
 
+  // A preset: a named overlay of values. Its value is read before every other
+  // parameter and `apply(options)` writes the preset's values; parameters
+  // declared Derived() keep them unless the graph gives its own.
+  template <typename T, typename Apply>
+  ParamBuilder AddPreset(const char* name, T Options::*field, const char* doc, Apply apply) {
+    ParamBuilder b = AddField<internal::ParamTraits<T>, T>(
+        name, doc, [field](Options& o) -> T& { return o.*field; });
+    Entry& e = *entries_.back();
+    e.preset = true;
+    e.parse = [field, apply, parse = e.parse](Options& o, const std::string& s) {
+      if (!parse(o, s)) return false;
+      apply(o);
+      return true;
+    };
+    return b;
+  }
+
   // Every option of a member struct M, declared once by M's own
   // `template <typename Schema> static void Declare(Schema&)` (which also
   // serves ParamSchema<M>): a library's options bound in place.
@@ -301,11 +329,15 @@ class ParamSchema {
   Options Parse(const std::vector<std::pair<std::string, std::string>>& given) const {
     const auto resolved = ResolveParams(Decls(), given);
     Options o{};
-    for (const auto& e : entries_) {
-      const std::string& value = resolved.at(e->decl.name);
-      if (!e->parse(o, value))
-        throw ParamError("parameter '" + e->decl.name + "': cannot parse '" + value + "' as " +
-                         ParamTypeName(e->decl.type));
+    for (const bool presets : {true, false}) {  // a preset's values first, then the rest over them
+      for (const auto& e : entries_) {
+        if (e->preset != presets) continue;
+        const std::string& value = resolved.at(e->decl.name);
+        if (value.empty() && e->decl.derived()) continue;
+        if (!e->parse(o, value))
+          throw ParamError("parameter '" + e->decl.name + "': cannot parse '" + value + "' as " +
+                           ParamTypeName(e->decl.type));
+      }
     }
     if constexpr (internal::HasCheck<Options>::value) {
       std::string why;
@@ -315,9 +347,12 @@ class ParamSchema {
   }
 
  private:
+  template <typename, typename>
+  friend class ParamGroup;
   struct Entry {
     ParamDecl decl;
     std::function<bool(Options&, const std::string&)> parse;
+    bool preset = false;  // read before the others (AddPreset)
   };
   template <typename Traits, typename T, typename Access>
   ParamBuilder AddField(const char* name, const char* doc, Access access) {
@@ -348,6 +383,12 @@ class ParamGroup {
   }
   ParamBuilder AddDegrees(const char* name, double M::*field, const char* doc) {
     return schema_->AddDegrees(name, outer_, field, doc);
+  }
+  // A member of a member struct of M (e.g. the image scale of a library's rig options).
+  template <typename T, typename N>
+  ParamBuilder Add(const char* name, N M::*middle, T N::*inner, const char* doc) {
+    return schema_->template AddField<internal::ParamTraits<T>, T>(
+        name, doc, [outer = outer_, middle, inner](Options& o) -> T& { return ((o.*outer).*middle).*inner; });
   }
 
  private:

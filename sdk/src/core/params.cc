@@ -198,6 +198,7 @@ std::string CheckNumber(const ParamDecl& d, const std::string& s, bool integer) 
 }  // namespace
 
 std::string ValidateParamValue(const ParamDecl& d, const std::string& value) {
+  if (value.empty() && d.derived()) return "";  // not given: the stage derives it
   switch (d.type) {
     case LF_PARAM_BOOL: {
       bool b;

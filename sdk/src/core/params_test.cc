@@ -67,6 +67,68 @@ TEST(ParamSchema, GroupIsTheLibrarysOwnDeclarationBoundInPlace) {
   ExpectParamError([] { ParamSchema<GroupStageOptions>().Parse({{"turn_deg", "200"}}); }, {"turn_deg", "180"});
 }
 
+// A library whose presets set some options: the stage binds the library's
+// declaration in place and the preset is an overlay of values.
+struct PresetLibraryOptions {
+  struct Size {
+    double width_m = 1;
+  };
+  int count = 1;         // a preset sets it
+  Size size;             // a preset sets its width
+  double speed = 0.5;    // no preset touches it
+  template <typename Schema>
+  static void Declare(Schema& s) {
+    s.Add("count", &PresetLibraryOptions::count, "How many (default: the preset's)").Range(1, 100).Derived();
+    s.Add("width_m", &PresetLibraryOptions::size, &Size::width_m, "How wide (default: the preset's)")
+        .Min(0.1).Derived();
+    s.Add("speed", &PresetLibraryOptions::speed, "How fast").Min(0);
+  }
+};
+PresetLibraryOptions NamedPreset(const std::string& name) {
+  PresetLibraryOptions o;
+  if (name == "big") o.count = 40, o.size.width_m = 12;
+  return o;
+}
+struct PresetStageOptions {
+  std::string preset = "plain";
+  PresetLibraryOptions library;
+  static void Declare(ParamSchema<PresetStageOptions>& s) {
+    s.AddGroup(&PresetStageOptions::library);  // declared before the preset: read after it all the same
+    s.AddPreset("preset", &PresetStageOptions::preset, "Which preset",
+                [](PresetStageOptions& o) { o.library = NamedPreset(o.preset); })
+        .Choices({"plain", "big"});
+  }
+};
+
+TEST(ParamSchema, PresetIsAnOverlayAndDerivedOptionsKeepItsValues) {
+  const auto decls = ParamSchema<PresetStageOptions>().Decls();
+  ASSERT_EQ(decls.size(), 4u);
+  EXPECT_TRUE(decls[0].derived());
+  EXPECT_EQ(decls[0].default_value, "");
+  EXPECT_TRUE(decls[1].derived());
+  EXPECT_FALSE(decls[2].derived());
+  EXPECT_EQ(decls[2].default_value, "0.5");
+
+  const ParamSchema<PresetStageOptions> schema;
+  PresetStageOptions o = schema.Parse({{"preset", "big"}});
+  EXPECT_EQ(o.library.count, 40);
+  EXPECT_EQ(o.library.size.width_m, 12);
+  o = schema.Parse({{"preset", "big"}, {"count", "3"}, {"speed", "2"}});
+  EXPECT_EQ(o.library.count, 3);  // given: over the preset
+  EXPECT_EQ(o.library.size.width_m, 12);
+  EXPECT_EQ(o.library.speed, 2);
+  o = schema.Parse({{"preset", "big"}, {"width_m", ""}});  // "": the preset's
+  EXPECT_EQ(o.library.size.width_m, 12);
+  o = schema.Parse({});
+  EXPECT_EQ(o.library.count, 1);
+  EXPECT_EQ(o.library.size.width_m, 1);
+  // A given value is still checked against its declaration; "" only means "the preset's".
+  ExpectParamError([&] { schema.Parse({{"count", "0"}}); }, {"count", "1"});
+  ExpectParamError([&] { schema.Parse({{"speed", ""}}); }, {"speed"});
+  EXPECT_EQ(ValidateParamValue(decls[0], ""), "");
+  EXPECT_NE(ValidateParamValue(decls[2], ""), "");
+}
+
 TEST(ParseToolOptions, HelpBadOptionAndValues) {
   auto parse = [](std::vector<std::string> args, GroupStageOptions* o) {
     std::vector<char*> argv;
