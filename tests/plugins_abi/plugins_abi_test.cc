@@ -90,6 +90,7 @@ INSTANTIATE_TEST_SUITE_P(
         BrokenCase{"null_name", "name NULL must be non-empty"},
         BrokenCase{"bad_default", "parameter 'iterations': invalid default value: value 42 is out "
                                   "of range [0, 10]"},
+        BrokenCase{"derived_default", "parameter 'iterations': LF_PARAM_DERIVED needs the default \"\""},
         BrokenCase{"missing_run", "required function 'run' is NULL"},
         BrokenCase{"truncated", "cannot load shared library"},
         BrokenCase{"junk", "cannot load shared library"}),

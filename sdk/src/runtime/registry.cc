@@ -112,6 +112,9 @@ ParamDecl ReadParam(const LfParamSpec& p, uint32_t stride, const std::string& wh
       Covers(stride, offsetof(LfParamSpec, component_interface), sizeof(p.component_interface)) &&
       p.component_interface != nullptr)
     d.component_interface = p.component_interface;
+  if (d.derived() && (d.required() || (p.default_value != nullptr && *p.default_value != '\0')))
+    throw Refused{at + ": LF_PARAM_DERIVED needs the default \"\" and no LF_PARAM_REQUIRED (the stage "
+                       "derives the value when none is given)"};
   if (!d.required()) {
     if (p.default_value == nullptr)
       throw Refused{at + ": no default value and not marked LF_PARAM_REQUIRED"};
