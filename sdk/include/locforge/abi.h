@@ -75,8 +75,9 @@ typedef enum LfParamType {
 enum {
   LF_PARAM_REQUIRED = 1u << 0,     /* no default; the graph must set it */
   LF_PARAM_NO_CACHE_KEY = 1u << 1, /* does not change results (e.g. verbosity) */
-  LF_PARAM_DERIVED = 1u << 2       /* default_value "": not given, the stage derives the value
-                                      (e.g. from a preset the graph chose); "" is valid */
+  LF_PARAM_DERIVED = 1u << 2       /* default_value "" (required so, and not LF_PARAM_REQUIRED):
+                                      not given, the stage derives the value (e.g. from a preset
+                                      the graph chose); "" is valid */
 };
 
 /* One declared parameter. Values cross the boundary as canonical strings:
