@@ -44,7 +44,7 @@ std::string DescribeParam(const ParamDecl& d) {
   s << "    " << d.name << "  (" << ParamTypeName(d.type) << ")";
   if (d.required())
     s << "  required";
-  else if (d.derived() && d.default_value.empty())
+  else if (d.derived())
     s << "  default: derived by the stage (see below)";
   else
     s << "  default: " << (d.default_value.empty() ? "\"\"" : Shown(d.default_value, d.type));

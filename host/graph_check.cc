@@ -26,6 +26,9 @@ std::vector<std::string> PortNames(const std::vector<runtime::PortDecl>& ports) 
 
 // Turns one element into its canonical form for `type` (validated already).
 std::string CanonicalItem(LfParamType type, const std::string& s) {
+  // Empty stays empty: valid only where the declaration allows "" (an optional
+  // path, a string, a value the stage derives), refused by validation elsewhere.
+  if (s.empty()) return s;
   switch (type) {
     case LF_PARAM_BOOL: {
       bool b = false;
@@ -76,10 +79,6 @@ bool CanonicalParam(const std::string& node, const ParamDecl& decl, const ParamV
   }
   std::vector<std::string> items = given.value.items;
   if (items.empty() && !IsListType(decl.type)) items.push_back("");
-  if (decl.derived() && !IsListType(decl.type) && items.front().empty()) {
-    *canonical = "";  // "" given (e.g. a variable left empty): the stage derives the value
-    return true;
-  }
   if (decl.type == LF_PARAM_PATH) {
     fs::path p = items.empty() ? fs::path() : fs::path(items.front());
     if (!p.empty() && p.is_relative()) p = given.base_dir / p;

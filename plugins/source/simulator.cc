@@ -14,7 +14,7 @@ using namespace ::locforge::sim;  // the library this stage wires
 struct SimulatorOptions {
   std::string preset = "small";
   double duration_scale = 1;  // multiplies every sequence's duration
-  SimOptions sim = PresetOptions("small");
+  SimOptions sim = PresetOptions(preset);
 
   static void Declare(ParamSchema<SimulatorOptions>& s) {
     s.AddPreset("preset", &SimulatorOptions::preset, "Recording size: tiny (tests), small (demo), large (benchmark)",

@@ -18,8 +18,6 @@
 namespace locforge::learned {
 namespace {
 
-std::vector<float> ReadFloats(const std::filesystem::path& file) { return reference::ReadRaw<float>(file); }
-
 // 8-bit RGB (empty when unreadable).
 cv::Mat ReadRgb(const std::filesystem::path& file) {
   const cv::Mat bgr = cv::imread(file.string(), cv::IMREAD_COLOR);
@@ -42,8 +40,8 @@ TEST(R2d2, ReproducesTheAuthorsExtractionOnBoat) {
   const R2d2Features f = ExtractR2d2(rgb, options);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  const std::vector<float> ref_kpt = ReadFloats(dir / "reference" / "boat.r2d2_WASF_N16.kpt");
-  const std::vector<float> ref_desc = ReadFloats(dir / "reference" / "boat.r2d2_WASF_N16.desc");
+  const std::vector<float> ref_kpt = reference::ReadRaw<float>(dir / "reference" / "boat.r2d2_WASF_N16.kpt");
+  const std::vector<float> ref_desc = reference::ReadRaw<float>(dir / "reference" / "boat.r2d2_WASF_N16.desc");
   ASSERT_EQ(ref_kpt.size(), 5000u * 3);
   ASSERT_EQ(ref_desc.size(), 5000u * 128);
   ASSERT_EQ(f.count(), 5000);
@@ -99,7 +97,7 @@ TEST(R2d2, Faster2d2RunsOnOddPyramidLevels) {
   LOCFORGE_SHARED_PATH_OR_SKIP(dir, "models/r2d2");
   const cv::Mat rgb = ReadRgb(dir / "reference" / "boat.png");
   ASSERT_FALSE(rgb.empty());
-  const std::vector<float> ref_kpt = ReadFloats(dir / "reference" / "boat.r2d2_WASF_N16.kpt");
+  const std::vector<float> ref_kpt = reference::ReadRaw<float>(dir / "reference" / "boat.r2d2_WASF_N16.kpt");
   R2d2Options o;
   o.model = (dir / "faster2d2_WASF_N16.onnx").string();
   o.top_k = 1000;

@@ -304,7 +304,7 @@ class ParamSchema {
         name, doc, [field](Options& o) -> T& { return o.*field; });
     Entry& e = *entries_.back();
     e.preset = true;
-    e.parse = [field, apply, parse = e.parse](Options& o, const std::string& s) {
+    e.parse = [apply, parse = e.parse](Options& o, const std::string& s) {
       if (!parse(o, s)) return false;
       apply(o);
       return true;

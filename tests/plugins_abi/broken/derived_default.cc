@@ -6,13 +6,6 @@ static LfParamSpec params[] = {[] {
   p.flags = LF_PARAM_DERIVED;
   return p;
 }()};
-static LfStageInfo stages[] = {[] {
-  LfStageInfo s = raw::WholeStage("derived_default");
-  s.params = params;
-  s.num_params = 1;
-  return s;
-}()};
 extern "C" LF_EXPORT const LfPluginInfo* locforge_plugin_entry(uint32_t) {
-  static LfPluginInfo info = raw::Plugin(stages, 1);
-  return &info;
+  return raw::OneStageWithParams("derived_default", params, 1);
 }

@@ -63,6 +63,20 @@ inline LfPluginInfo Plugin(const LfStageInfo* stages, uint32_t n) {
   return p;
 }
 
+// A plugin of one whole stage with `params`: the body of the cases spoiled
+// in a parameter. Internal linkage (static): the static locals of an extern
+// inline function are one object per process, shared by every case loaded.
+static inline const LfPluginInfo* OneStageWithParams(const char* name, const LfParamSpec* params, uint32_t n) {
+  static const LfStageInfo stage = [&] {
+    LfStageInfo s = WholeStage(name);
+    s.params = params;
+    s.num_params = n;
+    return s;
+  }();
+  static const LfPluginInfo info = Plugin(&stage, 1);
+  return &info;
+}
+
 }  // namespace raw
 
 #endif  // LOCFORGE_TESTS_PLUGINS_ABI_BROKEN_RAW_PLUGIN_H_
