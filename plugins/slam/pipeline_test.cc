@@ -12,7 +12,9 @@
 #include "testing.h"
 #include "cloud.h"
 #include "locforge/fs.h"
+#include "locforge/kapture/io.h"
 #include "locforge/kapture/kapture.h"
+#include "locforge/units.h"
 
 namespace locforge::lidar {
 namespace {
@@ -160,6 +162,12 @@ nodes:
   joins:
     stage: eval/joins
     inputs: {estimate: slam.trajectories, reference: recording}
+  sequences:
+    stage: slam/sequences
+    inputs: {scans: scans.scans, recording: recording}
+  by_sequence:
+    stage: slam/pose_graph
+    inputs: {scans: scans.scans, recording: recording, parts: sequences.parts}
 )");
   ASSERT_EQ(testing::RunHost(bin, {"run", (dir / "join.yaml").string(), "--workspace", (dir / "ws").string()},
                               dir / "run.log"),
@@ -176,6 +184,19 @@ nodes:
   EXPECT_LT(rot, 0.2);
   const std::string joins = ReadFile(dir / "ws/nodes/slam/joins.csv");
   EXPECT_NE(joins.find("map_01,joined,map_00,1,1,"), std::string::npos) << joins;
+  // Each sequence's SLAM as its own item (slam/sequences), then the joins
+  // over those parts: the same joins, every pose within 1 mm / 0.01 deg of
+  // the joint run's (measured: identical bytes).
+  EXPECT_EQ(ReadFile(dir / "ws/nodes/by_sequence/joins.csv"), joins);
+  const auto joint = kapture::ReadTrajectories(dir / "ws/nodes/slam/sensors/trajectories.txt");
+  const auto split = kapture::ReadTrajectories(dir / "ws/nodes/by_sequence/sensors/trajectories.txt");
+  ASSERT_EQ(split.size(), joint.size());
+  for (const auto& [key, pose] : joint.poses) {
+    const Pose* other = split.Find(key.first, key.second);
+    ASSERT_NE(other, nullptr) << key.second;
+    EXPECT_LT((other->Center() - pose.Center()).norm(), 1e-3) << key.second;
+    EXPECT_LT(other->q.angularDistance(pose.q) / kDeg, 0.01) << key.second;
+  }
   fs::remove_all(dir);
 }
 

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <tuple>
 
 namespace locforge::lidar {
 
@@ -477,31 +478,143 @@ void Slam::AddStepTime(const std::string& step, double seconds) {
   stats_.steps.emplace_back(step, seconds);
 }
 
+namespace {
+
+template <typename F>
+auto Timed(Slam* slam, const std::string& step, F&& f) {
+  const auto start = std::chrono::steady_clock::now();
+  auto result = f();
+  slam->AddStepTime(step, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  return result;
+}
+
+}  // namespace
+
 void Slam::Run() {
-  auto timed = [this](const std::string& step, auto&& f) {
-    const auto start = std::chrono::steady_clock::now();
-    auto result = f();
-    AddStepTime(step, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-    return result;
-  };
-  timed("sequential edges", [&] { AddSequentialEdges(); return 0; });
+  RunWithinParts();
+  RunJoins();
+}
+
+void Slam::RunWithinParts() {
+  Timed(this, "sequential edges", [&] { AddSequentialEdges(); return 0; });
   before_ = graph_;
   // Each part alone first: its own loops, optimised, so that the maps
   // compared when joining are as right as they get.
-  int added = timed("loops", [&] { return AddLoopEdges(); });
-  timed("optimisation", [&] { Optimize(); return 0; });
+  const int added = Timed(this, "loops", [&] { return AddLoopEdges(); });
+  Timed(this, "optimisation", [&] { Optimize(); return 0; });
   hooks_.info("pose_graph: " + std::to_string(added) + " loop edges within the parts");
+}
+
+void Slam::RunJoins() {
   for (int round = 1; round <= o_.rounds; ++round) {
     const size_t edges = graph_.edges.size();
-    const int joined = timed("joins", [&] { return JoinComponents(round); });
-    timed("loops", [&] { return AddLoopEdges(); });
-    added = static_cast<int>(graph_.edges.size() - edges);  // join loops + the others
+    const int joined = Timed(this, "joins", [&] { return JoinComponents(round); });
+    Timed(this, "loops", [&] { return AddLoopEdges(); });
+    const int added = static_cast<int>(graph_.edges.size() - edges);  // join loops + the others
     hooks_.info("pose_graph: round " + std::to_string(round) + ": " + std::to_string(joined) + " parts joined, " +
                 std::to_string(added) + " loop edges");
-    timed("optimisation", [&] { Optimize(); return 0; });
+    Timed(this, "optimisation", [&] { Optimize(); return 0; });
     if (added == 0 && joined == 0) break;
   }
-  timed("join check", [&] { CheckFinalJoins(); return 0; });
+  Timed(this, "join check", [&] { CheckFinalJoins(); return 0; });
+}
+
+SlamPart Slam::ExportPart() const {
+  SlamPart part;
+  part.sequence = keyframes_.front().sequence;
+  for (const Keyframe& kf : keyframes_) {
+    if (kf.sequence != part.sequence)
+      throw Error("slam: a part holds one sequence; keyframes of " + part.sequence + " and " + kf.sequence);
+    Keyframe copy;
+    copy.id = kf.id;
+    copy.timestamp = kf.timestamp;
+    copy.sequence = kf.sequence;
+    copy.travelled = kf.travelled;
+    copy.cloud = kf.cloud;
+    copy.rough = kf.rough;
+    part.keyframes.push_back(std::move(copy));
+  }
+  part.manual = manual_.count(part.sequence) > 0;
+  part.graph.nodes = graph_.nodes;
+  part.graph.edges = graph_.edges;
+  part.before.nodes = before_.nodes;
+  part.loops.assign(accepted_.begin(), accepted_.end());
+  const SlamStats& s = stats_;
+  part.sequential_fallbacks = s.sequential_fallbacks;
+  part.information_fallbacks = s.information_fallbacks;
+  part.refinements = s.refinements;
+  part.refinements_rejected = s.refinements_rejected;
+  part.sequential_reregistered = s.sequential_reregistered;
+  part.loop_tests = s.loop_tests;
+  part.odometry_yaw_scale.assign(s.odometry_yaw_scale.begin(), s.odometry_yaw_scale.end());
+  part.initial_cost = s.summary.initial_cost;
+  part.final_cost = s.summary.final_cost;
+  part.iterations = s.summary.iterations;
+  part.steps = s.steps;
+  return part;
+}
+
+void Slam::AdoptParts(std::vector<SlamPart> parts) {
+  if (parts.empty()) throw InputError("slam: no sequence part to join");
+  // The joint run's keyframe order: every scan in time order (the parts' own
+  // keyframes are), ties in the order of the parts' first keyframes.
+  std::stable_sort(parts.begin(), parts.end(), [](const SlamPart& a, const SlamPart& b) {
+    return a.keyframes.front().timestamp < b.keyframes.front().timestamp;
+  });
+  std::vector<std::tuple<Timestamp, size_t, size_t>> order;  // (time, part, local id)
+  for (size_t p = 0; p < parts.size(); ++p) {
+    for (size_t q = 0; q < p; ++q)
+      if (parts[q].sequence == parts[p].sequence)
+        throw InputError("slam: two parts of sequence '" + parts[p].sequence + "'");
+    for (size_t k = 0; k < parts[p].keyframes.size(); ++k) order.emplace_back(parts[p].keyframes[k].timestamp, p, k);
+  }
+  std::stable_sort(order.begin(), order.end(),
+                   [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
+  std::vector<std::vector<int>> id(parts.size());
+  for (size_t p = 0; p < parts.size(); ++p) id[p].resize(parts[p].keyframes.size());
+  keyframes_.clear();
+  for (const auto& [t, p, k] : order) {
+    Keyframe kf = std::move(parts[p].keyframes[k]);
+    kf.id = static_cast<int>(keyframes_.size());
+    kf.context = MakeScanContext(kf.cloud, ScanContextOptions{});
+    id[p][k] = kf.id;
+    graph_.nodes[kf.id] = parts[p].graph.nodes.at(static_cast<int>(k));
+    before_.nodes[kf.id] = parts[p].before.nodes.at(static_cast<int>(k));
+    keyframes_.push_back(std::move(kf));
+  }
+  for (size_t p = 0; p < parts.size(); ++p) {
+    SlamPart& part = parts[p];
+    for (PoseGraphEdge e : part.graph.edges) {
+      e.from = id[p].at(static_cast<size_t>(e.from));
+      e.to = id[p].at(static_cast<size_t>(e.to));
+      graph_.edges.push_back(e);
+    }
+    for (const auto& [a, b] : part.loops) {
+      const int ia = id[p].at(static_cast<size_t>(a)), ib = id[p].at(static_cast<size_t>(b));
+      accepted_.insert({std::min(ia, ib), std::max(ia, ib)});
+    }
+    if (part.manual) manual_.insert(part.sequence);
+    component_[part.sequence] = part.manual ? 0 : id[p].front();
+    stats_.sequential_fallbacks += part.sequential_fallbacks;
+    stats_.information_fallbacks += part.information_fallbacks;
+    stats_.refinements += part.refinements;
+    stats_.refinements_rejected += part.refinements_rejected;
+    stats_.sequential_reregistered += part.sequential_reregistered;
+    stats_.loop_tests += part.loop_tests;
+    for (const auto& [seq, k] : part.odometry_yaw_scale) stats_.odometry_yaw_scale[seq] = k;
+    stats_.summary.initial_cost += part.initial_cost;
+    stats_.summary.final_cost += part.final_cost;
+    stats_.summary.iterations += part.iterations;
+    for (const auto& [step, seconds] : part.steps) AddStepTime(step, seconds);  // CPU of the parts, summed
+  }
+  if (o_.planar) {
+    graph_.planar_sigma_z = o_.planar_sigma_z_m;
+    graph_.planar_sigma_tilt = o_.planar_sigma_tilt_rad;
+  }
+  poses_version_ = 1;  // as after the joint run's first optimisation
+  hooks_.info("pose_graph: " + std::to_string(parts.size()) + " sequence parts, " +
+              std::to_string(keyframes_.size()) + " keyframes, " + std::to_string(accepted_.size()) +
+              " loop edges within the parts");
 }
 
 // T_world_rig at t. Wheel odometry: the latest keyframe at or before t in

@@ -23,6 +23,7 @@
 #include "loop_search.h"
 #include "pose_graph.h"
 #include "slam_options.h"
+#include "slam_part.h"
 
 namespace locforge::lidar {
 
@@ -110,8 +111,21 @@ class Slam {
 
   // Keyframes of `scans` (time order; read(i) loads scan i in the rig frame).
   void SelectKeyframes(const std::vector<ScanStamp>& scans, const std::function<Cloud(size_t)>& read);
-  // Sequential edges, rounds of joins, loops and optimisation, final checks.
+  // Sequential edges, rounds of joins, loops and optimisation, final checks:
+  // RunWithinParts then RunJoins.
   void Run();
+  // Each part alone: sequential edges, its own loops, optimised.
+  void RunWithinParts();
+  // Rounds of joins, loops and optimisation, then the final checks.
+  void RunJoins();
+
+  // After RunWithinParts on the scans of one sequence: its part (slam_part.h).
+  SlamPart ExportPart() const;
+  // Instead of SelectKeyframes and RunWithinParts: the parts of every
+  // sequence, each computed on its own, merged as the joint run orders its
+  // keyframes (time order; ids renumbered). Throws InputError when two parts
+  // hold one sequence.
+  void AdoptParts(std::vector<SlamPart> parts);
 
   // T_world_rig at t, in t's part's frame; false when no keyframe is near.
   // `from`: the keyframe it was taken from (its part is t's).

@@ -324,6 +324,14 @@ class ParamSchema {
     return out;
   }
 
+  // Every parameter's value in `o`, in declaration order, in the canonical
+  // form Parse reads (e.g. to record the options a result was made with).
+  std::vector<std::pair<std::string, std::string>> Format(const Options& o) const {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& e : entries_) out.emplace_back(e->decl.name, e->format(o));
+    return out;
+  }
+
   // Resolves, validates and parses the given values into Options, then runs
   // Options::Check() when it exists. Throws ParamError with the reason.
   Options Parse(const std::vector<std::pair<std::string, std::string>>& given) const {
@@ -352,6 +360,7 @@ class ParamSchema {
   struct Entry {
     ParamDecl decl;
     std::function<bool(Options&, const std::string&)> parse;
+    std::function<std::string(const Options&)> format;
     bool preset = false;  // read before the others (AddPreset)
   };
   template <typename Traits, typename T, typename Access>
@@ -365,6 +374,8 @@ class ParamSchema {
     entry->parse = [access](Options& o, const std::string& s) {
       return Traits::Parse(s, &access(o));
     };
+    // access() only selects the member; Format reads it.
+    entry->format = [access](const Options& o) { return Traits::Format(access(const_cast<Options&>(o))); };
     entries_.push_back(std::move(entry));
     return ParamBuilder(&entries_.back()->decl);
   }

@@ -453,6 +453,28 @@ TEST(ParamSchema, ParseFillsOptions) {
   EXPECT_EQ(o.tags, (std::vector<std::string>{"x"}));
 }
 
+// Format gives every parameter in the form Parse reads: parsing it back
+// gives the same options, and formatting those the same values.
+TEST(ParamSchema, FormatIsWhatParseReadsBack) {
+  const ParamSchema<SampleOptions> schema;
+  const SampleOptions o = schema.Parse({{"database", "d"}, {"ratio", "0.1"}, {"offset", "-10"},
+                                        {"scale", "2.5"}, {"weights", JoinList({"0", "3.25"})},
+                                        {"tags", JoinList({"x", "y z"})}, {"mode", "exact"}});
+  const auto values = schema.Format(o);
+  ASSERT_EQ(values.size(), schema.Decls().size());
+  std::map<std::string, std::string> by_name(values.begin(), values.end());
+  EXPECT_EQ(by_name["ratio"], "0.1");
+  EXPECT_EQ(by_name["offset"], "-10");
+  EXPECT_EQ(by_name["mode"], "exact");
+  EXPECT_EQ(by_name["database"], "d");
+  const SampleOptions back = schema.Parse(values);
+  EXPECT_EQ(back.ratio, o.ratio);
+  EXPECT_EQ(back.weights, o.weights);
+  EXPECT_EQ(back.tags, o.tags);
+  EXPECT_EQ(schema.Format(back), values);
+  EXPECT_NE(schema.Format(schema.Parse({{"database", "d"}, {"ratio", "0.2"}})), values);
+}
+
 TEST(ParamSchema, ParseRefusesValuesTheFieldCannotHold) {
   const ParamSchema<SampleOptions> schema;
   ExpectParamError([&] { schema.Parse({{"database", "d"}, {"seed", "-1"}}); }, {"seed", "-1"});
