@@ -197,6 +197,16 @@ nodes:
     EXPECT_LT((other->Center() - pose.Center()).norm(), 1e-3) << key.second;
     EXPECT_LT(other->q.angularDistance(pose.q) / kDeg, 0.01) << key.second;
   }
+  // Parts made with other SLAM parameters than the join's are refused, naming the parameter
+  // (the other nodes are cached: only the join runs).
+  EXPECT_EQ(testing::RunHost(bin, {"run", (dir / "join.yaml").string(), "--workspace", (dir / "ws").string(),
+                                   "--set", "by_sequence.loop_radius_m=5"},
+                              dir / "mismatch.log"),
+            1);
+  const std::string mismatch = ReadFile(dir / "mismatch.log");
+  EXPECT_NE(mismatch.find("map_00.part: field 'loop_radius_m': made with loop_radius_m='4', this stage has '5'"),
+            std::string::npos)
+      << mismatch;
   fs::remove_all(dir);
 }
 
