@@ -231,7 +231,7 @@ bool JoinOnly(const std::string& key) {
 
 // The parts of `parts_dir`, refused when made with other parameters than `params`.
 std::vector<SlamPart> ReadParts(RunContext& ctx, const fs::path& parts_dir,
-                                const std::vector<std::pair<std::string, std::string>>& params) {
+                                const std::vector<std::pair<std::string, std::string>>& params, bool keep_clouds) {
   std::vector<fs::path> files;
   for (const auto& e : fs::directory_iterator(parts_dir))
     if (e.path().extension() == ".part") files.push_back(e.path());
@@ -239,7 +239,7 @@ std::vector<SlamPart> ReadParts(RunContext& ctx, const fs::path& parts_dir,
   if (files.empty()) throw InputError(parts_dir.string(), 0, "parts", "no <sequence>.part file (slam/sequences' output)");
   std::vector<SlamPart> parts;
   for (const fs::path& f : files) {
-    SlamPart part = ReadSlamPart(f);
+    SlamPart part = ReadSlamPart(f, keep_clouds);
     std::map<std::string, std::string> theirs(part.params.begin(), part.params.end());
     for (const auto& [key, value] : params) {
       if (JoinOnly(key)) continue;
@@ -273,7 +273,7 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   std::vector<kapture::DataRecord> scans;
   if (ctx.HasInput("parts")) {
     scans = ScansInTimeOrder(k);
-    slam.AdoptParts(ReadParts(ctx, ctx.Input("parts"), Schema().Format(o)));
+    slam.AdoptParts(ReadParts(ctx, ctx.Input("parts"), Schema().Format(o), o.slam.join_clouds_in_memory == 0));
     slam.RunJoins();
   } else {
     scans = SelectKeyframes(ctx, k, &slam);

@@ -110,6 +110,34 @@ Cloud VoxelDownsample(const Cloud& cloud, double voxel) {
   return out;
 }
 
+size_t VoxelAccumulator::KeyHash::operator()(const std::tuple<int, int, int>& k) const {
+  const uint64_t h = (static_cast<uint64_t>(static_cast<uint32_t>(std::get<0>(k))) * 0x9E3779B97F4A7C15ull) ^
+                     (static_cast<uint64_t>(static_cast<uint32_t>(std::get<1>(k))) * 0xC2B2AE3D27D4EB4Full) ^
+                     (static_cast<uint64_t>(static_cast<uint32_t>(std::get<2>(k))) * 0x165667B19E3779F9ull);
+  return static_cast<size_t>(h ^ (h >> 29));
+}
+
+void VoxelAccumulator::Add(const Cloud& piece) {
+  for (const Eigen::Vector3f& p : piece.points) {
+    Cell& c = cells_[{static_cast<int>(std::floor(p.x() * inv_)), static_cast<int>(std::floor(p.y() * inv_)),
+                      static_cast<int>(std::floor(p.z() * inv_))}];
+    c.sum += p.cast<double>();
+    ++c.n;
+  }
+}
+
+Cloud VoxelAccumulator::Result() const {
+  // In (x, y, z) cell order, as VoxelDownsample emits them.
+  std::vector<std::pair<std::tuple<int, int, int>, const Cell*>> sorted;
+  sorted.reserve(cells_.size());
+  for (const auto& [key, cell] : cells_) sorted.emplace_back(key, &cell);
+  std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  Cloud out;
+  out.points.reserve(sorted.size());
+  for (const auto& [key, cell] : sorted) out.points.push_back((cell->sum / cell->n).cast<float>());
+  return out;
+}
+
 void Transform(const Pose& T, Cloud* cloud) {
   const Eigen::Matrix3f R = T.R().cast<float>();
   const Eigen::Vector3f t = T.t.cast<float>();

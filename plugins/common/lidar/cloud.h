@@ -6,6 +6,8 @@
 #define LOCFORGE_PLUGINS_COMMON_LIDAR_CLOUD_H_
 
 #include <Eigen/Core>
+#include <tuple>
+#include <unordered_map>
 #include <vector>
 
 #include "locforge/fs.h"
@@ -24,6 +26,28 @@ Cloud ReadScan(const fs::path& path);
 
 // One point (the centroid) per occupied voxel of side `voxel` (m), its time the mean of the voxel's.
 Cloud VoxelDownsample(const Cloud& cloud, double voxel);
+// VoxelDownsample of a cloud given in pieces (e.g. keyframes read one at a
+// time): Add every piece in order, then Result() is VoxelDownsample of their
+// concatenation, bit for bit (the same sums in the same order), while only
+// the cells are held. Times are not kept.
+class VoxelAccumulator {
+ public:
+  explicit VoxelAccumulator(double voxel) : inv_(1.0 / voxel) {}
+  void Add(const Cloud& piece);
+  Cloud Result() const;
+
+ private:
+  struct Cell {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int n = 0;
+  };
+  struct KeyHash {
+    size_t operator()(const std::tuple<int, int, int>& k) const;
+  };
+  double inv_;
+  std::unordered_map<std::tuple<int, int, int>, Cell, KeyHash> cells_;
+};
+
 // Applies T to every point.
 void Transform(const Pose& T, Cloud* cloud);
 

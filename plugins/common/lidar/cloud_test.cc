@@ -112,6 +112,26 @@ TEST(VoxelDownsample, CentroidPerCellInCellOrder) {
   for (size_t i = 0; i < want.size(); ++i) EXPECT_LT((down.points[i] - want[i]).norm(), 1e-5f) << i;
 }
 
+// A cloud given in pieces (a map from keyframes read one at a time): the
+// same points as downsampling the concatenation, bit for bit.
+TEST(VoxelAccumulator, PiecesGiveVoxelDownsampleOfTheirConcatenation) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-4, 4);
+  Cloud whole;
+  VoxelAccumulator acc(0.05);
+  for (int piece = 0; piece < 7; ++piece) {
+    Cloud c;
+    for (int i = 0; i < 3000; ++i) c.points.emplace_back(u(rng), u(rng), u(rng) * 0.2f);
+    acc.Add(c);
+    whole.points.insert(whole.points.end(), c.points.begin(), c.points.end());
+  }
+  const Cloud want = VoxelDownsample(whole, 0.05);
+  const Cloud got = acc.Result();
+  ASSERT_GT(want.size(), 1000u);
+  ASSERT_LT(want.size(), whole.size());  // cells shared between pieces
+  EXPECT_EQ(got.points, want.points);
+}
+
 }  // namespace
 // Per-point times survive downsampling as each cell's mean (slam/pose_graph
 // undistorts keyframes again from them), on both cell paths; no times in,

@@ -25,6 +25,10 @@ struct Keyframe {
   Cloud cloud, rough;         // full, and downsampled for the rough loop check
   ScanContext context;        // place descriptor (scan_context.h)
   double travelled = 0;       // m since the sequence's start: odometry, or estimated
+  // Where `cloud` is read from when it is not kept in memory (empty `cloud`):
+  // a slam/sequences part file and the cloud's byte offset in it (slam_part.h).
+  fs::path cloud_file;
+  uint64_t cloud_offset = 0;
 };
 
 // "undistorted/<seq>/..." -> "<seq>"; a path without a folder -> "".

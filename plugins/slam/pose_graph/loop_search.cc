@@ -47,21 +47,23 @@ std::vector<RegistrationResult> RoughCheck(const Registrar& registrar, const Key
   return roughs;
 }
 
-bool FineCheck(const Registrar& registrar, const Refiner& refine, const Keyframe& a, const Keyframe& b,
-               const RegistrationResult& rough, const LoopCheckOptions& o, RegistrationResult* fine) {
-  const RegistrationResult r = registrar(b.cloud, a.cloud, rough.T_target_source);
+bool FineCheck(const Registrar& registrar, const Refiner& refine, const KeyframeCloud& cloud_of, const Keyframe& a,
+               const Keyframe& b, const RegistrationResult& rough, const LoopCheckOptions& o,
+               RegistrationResult* fine) {
+  const std::shared_ptr<const Cloud> ca = cloud_of(a), cb = cloud_of(b);
+  const RegistrationResult r = registrar(*cb, *ca, rough.T_target_source);
   if (!r.converged || r.inlier_fraction < o.overlap) return false;
-  *fine = refine(r, b.cloud, a.cloud);
+  *fine = refine(r, *cb, *ca);
   return true;
 }
 
-std::vector<RegistrationResult> CheckLoop(const Registrar& registrar, const Refiner& refine, const Keyframe& a,
-                                          const Keyframe& b, const std::vector<Pose>& guesses,
-                                          const LoopCheckOptions& o) {
+std::vector<RegistrationResult> CheckLoop(const Registrar& registrar, const Refiner& refine,
+                                          const KeyframeCloud& cloud_of, const Keyframe& a, const Keyframe& b,
+                                          const std::vector<Pose>& guesses, const LoopCheckOptions& o) {
   std::vector<RegistrationResult> out;
   for (const auto& rough : RoughCheck(registrar, a, b, guesses, o)) {
     RegistrationResult fine;
-    if (FineCheck(registrar, refine, a, b, rough, o, &fine)) out.push_back(fine);
+    if (FineCheck(registrar, refine, cloud_of, a, b, rough, o, &fine)) out.push_back(fine);
   }
   return out;
 }

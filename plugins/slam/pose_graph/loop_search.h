@@ -6,6 +6,7 @@
 #define LOCFORGE_PLUGINS_SLAM_POSE_GRAPH_LOOP_SEARCH_H_
 
 #include <functional>
+#include <memory>
 #include <map>
 #include <string>
 #include <utility>
@@ -41,6 +42,8 @@ struct LoopCheckOptions {
 };
 
 using Refiner = std::function<RegistrationResult(const RegistrationResult&, const Cloud&, const Cloud&)>;
+// A keyframe's full cloud (kept in memory, or read when needed: Slam::CloudOf).
+using KeyframeCloud = std::function<std::shared_ptr<const Cloud>(const Keyframe&)>;
 
 // The coarse step of a loop check b -> a (T_ab): the rough registration
 // (`rough` clouds) from each guess; the distinct solutions passing the
@@ -49,12 +52,13 @@ std::vector<RegistrationResult> RoughCheck(const Registrar& registrar, const Key
                                            const std::vector<Pose>& guesses, const LoopCheckOptions& options);
 // The precise step from a rough solution (`cloud`), then `refine`; false
 // when the precise registration fails its overlap.
-bool FineCheck(const Registrar& registrar, const Refiner& refine, const Keyframe& a, const Keyframe& b,
-               const RegistrationResult& rough, const LoopCheckOptions& options, RegistrationResult* fine);
+bool FineCheck(const Registrar& registrar, const Refiner& refine, const KeyframeCloud& cloud_of, const Keyframe& a,
+               const Keyframe& b, const RegistrationResult& rough, const LoopCheckOptions& options,
+               RegistrationResult* fine);
 // Both steps: the accepted precise results, at most one per distinct rough solution.
-std::vector<RegistrationResult> CheckLoop(const Registrar& registrar, const Refiner& refine, const Keyframe& a,
-                                          const Keyframe& b, const std::vector<Pose>& guesses,
-                                          const LoopCheckOptions& options);
+std::vector<RegistrationResult> CheckLoop(const Registrar& registrar, const Refiner& refine,
+                                          const KeyframeCloud& cloud_of, const Keyframe& a, const Keyframe& b,
+                                          const std::vector<Pose>& guesses, const LoopCheckOptions& options);
 
 }  // namespace locforge::lidar
 

@@ -183,7 +183,8 @@ Refiner Slam::MakeRefiner() {
 
 std::vector<RegistrationResult> Slam::CheckLoop(const Keyframe& a, const Keyframe& b, const std::vector<Pose>& guesses,
                                                 double rough_error) {
-  return lidar::CheckLoop(registrar_, MakeRefiner(), a, b, guesses, LoopOptions(rough_error));
+  return lidar::CheckLoop(registrar_, MakeRefiner(), [this](const Keyframe& k) { return CloudOf(k); }, a, b, guesses,
+                          LoopOptions(rough_error));
 }
 
 bool Slam::RegisterSequential(size_t i, Pose* guess, RegistrationResult* r) {
@@ -469,6 +470,24 @@ void Slam::Optimize() {
   ++poses_version_;
 }
 
+std::shared_ptr<const Cloud> Slam::CloudOf(const Keyframe& kf) const {
+  if (kf.cloud_file.empty()) return std::shared_ptr<const Cloud>(std::shared_ptr<const Cloud>(), &kf.cloud);  // not owned
+  std::lock_guard<std::mutex> lock(clouds_mutex_);
+  auto it = clouds_read_.find(kf.id);
+  if (it == clouds_read_.end()) {
+    if (o_.join_clouds_in_memory > 0 && clouds_read_.size() >= static_cast<size_t>(o_.join_clouds_in_memory)) {
+      auto oldest = clouds_read_.begin();
+      for (auto c = clouds_read_.begin(); c != clouds_read_.end(); ++c)
+        if (c->second.first < oldest->second.first) oldest = c;
+      clouds_read_.erase(oldest);  // a caller still using it keeps its own reference
+    }
+    it = clouds_read_.emplace(kf.id, std::make_pair(0, std::make_shared<const Cloud>(
+                                                        ReadPartCloud(kf.cloud_file, kf.cloud_offset)))).first;
+  }
+  it->second.first = ++clouds_clock_;
+  return it->second.second;
+}
+
 void Slam::AddStepTime(const std::string& step, double seconds) {
   for (auto& [name, t] : stats_.steps)
     if (name == step) {
@@ -576,7 +595,6 @@ void Slam::AdoptParts(std::vector<SlamPart> parts) {
   for (const auto& [t, p, k] : order) {
     Keyframe kf = std::move(parts[p].keyframes[k]);
     kf.id = static_cast<int>(keyframes_.size());
-    kf.context = MakeScanContext(kf.cloud, ScanContextOptions{});
     id[p][k] = kf.id;
     graph_.nodes[kf.id] = parts[p].graph.nodes.at(static_cast<int>(k));
     before_.nodes[kf.id] = parts[p].before.nodes.at(static_cast<int>(k));

@@ -145,6 +145,9 @@ class Slam {
   void AddStepTime(const std::string& step, double seconds);
   // Floor grid of a set of keyframes at their current poses.
   FloorGrid MakeFloor(const std::vector<const Keyframe*>& keyframes) const;
+  // A keyframe's full cloud: in memory, or read from its part file (at most
+  // join_clouds_in_memory of those held at once, least recently used dropped).
+  std::shared_ptr<const Cloud> CloudOf(const Keyframe& kf) const;
 
  private:
   RegistrationResult Refine(const RegistrationResult& first, const Cloud& source, const Cloud& target);
@@ -241,6 +244,10 @@ class Slam {
   std::vector<SequenceJoin> sequence_joins_;
   SlamStats stats_;
   std::mutex stats_mutex_;  // the counters Refine updates from worker threads
+  // Clouds read from part files: keyframe id -> (last use, cloud).
+  mutable std::mutex clouds_mutex_;
+  mutable std::map<int, std::pair<uint64_t, std::shared_ptr<const Cloud>>> clouds_read_;
+  mutable uint64_t clouds_clock_ = 0;
 };
 
 }  // namespace locforge::lidar

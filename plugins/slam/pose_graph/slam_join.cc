@@ -58,7 +58,7 @@ FloorGrid Slam::MakeFloor(const std::vector<const Keyframe*>& kfs) const {
     box.extend(p + Eigen::Vector2d::Constant(fo.max_range_m + 1));
   }
   FloorGrid g(fo, box);
-  for (const Keyframe* k : kfs) g.AddScan(k->cloud, graph_.nodes.at(k->id));
+  for (const Keyframe* k : kfs) g.AddScan(*CloudOf(*k), graph_.nodes.at(k->id));
   g.Finish();
   return g;
 }
@@ -401,7 +401,8 @@ void Slam::MakeLoopsPrecise(JoinSearch& s, int w) {
   for (int i : s.hypotheses[w].loops) {
     hooks_.check_cancelled();
     RegistrationResult precise;
-    if (!FineCheck(registrar_, MakeRefiner(), keyframes_[s.candidates[i].a], keyframes_[s.candidates[i].b],
+    if (!FineCheck(registrar_, MakeRefiner(), [this](const Keyframe& k) { return CloudOf(k); },
+                   keyframes_[s.candidates[i].a], keyframes_[s.candidates[i].b],
                    s.results[i], LoopOptions(o_.join_rough_error), &precise))
       continue;
     const Keyframe& a = keyframes_[s.candidates[i].a];

@@ -62,6 +62,10 @@ struct SlamOptions {
   int join_trials = 3;
   double join_trial_max_conflict = 0.08;
   double join_free_space_margin_m = 0.3;
+  // Joining slam/sequences' parts, the keyframe clouds stay in their files
+  // and are read when a loop check or a floor grid needs them: a floor's
+  // clouds do not fit one node (~2 MB per keyframe).
+  int join_clouds_in_memory = 256;
   std::string unjoined = "error";
   std::string loss = "cauchy";
   double loss_scale = 1.0;
@@ -181,6 +185,10 @@ struct SlamOptions {
           "starts within join_max_start_offset_m)").Range(0, 1);
     s.Add("join_free_space_margin_m", &SlamOptions::join_free_space_margin_m,
           "Structure within this distance of the other map's returns agrees with it (m)").Range(0, 10);
+    s.Add("join_clouds_in_memory", &SlamOptions::join_clouds_in_memory,
+          "Over slam/sequences' parts (the parts input): keyframe clouds held in memory at once, the others read "
+          "from the part files when needed (the same results; 0: every cloud read into memory at the start)")
+        .Range(0, 1000000000);
     s.Add("unjoined", &SlamOptions::unjoined,
           "A part that cannot be joined: error (stop, with the evidence and how to give initial_poses) or separate "
           "(kept out of the merged frame; joins.csv)").Choices({"error", "separate"});

@@ -134,14 +134,14 @@ kapture::Trajectories AnchorTrajectories(const Slam& slam, const std::vector<kap
 
 // The anchor part's keyframes at their optimised poses, downsampled.
 Cloud AnchorMap(const Slam& slam, double voxel_m) {
-  Cloud map;
+  VoxelAccumulator map(voxel_m);  // one keyframe's cloud in memory at a time
   for (const auto& kf : slam.keyframes()) {
     if (slam.ComponentOf(kf.sequence) != slam.AnchorComponent()) continue;
-    Cloud c = kf.cloud;
+    Cloud c = *slam.CloudOf(kf);
     Transform(slam.graph().nodes.at(kf.id), &c);
-    map.points.insert(map.points.end(), c.points.begin(), c.points.end());
+    map.Add(c);
   }
-  return VoxelDownsample(map, voxel_m);
+  return map.Result();
 }
 
 // The keyframes top-down before and after optimisation, with the loops.

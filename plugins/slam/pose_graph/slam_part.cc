@@ -1,9 +1,11 @@
 #include "slam_part.h"
 
 #include <cstring>
+#include <fstream>
 #include <type_traits>
 
 #include "locforge/error.h"
+#include "scan_context.h"
 
 namespace locforge::lidar {
 
@@ -95,6 +97,7 @@ class Reader {
     at_ += bytes.size();
   }
   bool AtEnd() const { return at_ == b_.size(); }
+  size_t at() const { return at_; }
   [[noreturn]] void Fail(const char* field, const std::string& what) const {
     throw InputError(name_, 0, field, what + " (byte " + std::to_string(at_) + ")");
   }
@@ -164,7 +167,7 @@ std::string EncodeSlamPart(const SlamPart& part) {
   return std::move(w.bytes());
 }
 
-SlamPart DecodeSlamPart(const std::string& bytes, const std::string& name) {
+SlamPart DecodeSlamPart(const std::string& bytes, const std::string& name, bool keep_clouds) {
   Reader r(bytes, name);
   r.Expect(kMagic, "magic", "not a slam/sequences part file");
   const uint32_t version = r.Get<uint32_t>("version");
@@ -186,7 +189,15 @@ SlamPart DecodeSlamPart(const std::string& bytes, const std::string& name) {
     kf.sequence = part.sequence;
     kf.timestamp = r.Get<int64_t>("keyframes.timestamp");
     kf.travelled = r.Get<double>("keyframes.travelled");
-    kf.cloud = r.CloudOf("keyframes.cloud");
+    const size_t offset = r.at();
+    Cloud cloud = r.CloudOf("keyframes.cloud");
+    kf.context = MakeScanContext(cloud, ScanContextOptions{});
+    if (keep_clouds) {
+      kf.cloud = std::move(cloud);
+    } else {
+      kf.cloud_file = name;
+      kf.cloud_offset = offset;
+    }
     kf.rough = r.CloudOf("keyframes.rough");
     part.keyframes.push_back(std::move(kf));
   }
@@ -236,7 +247,29 @@ SlamPart DecodeSlamPart(const std::string& bytes, const std::string& name) {
 
 void WriteSlamPart(const fs::path& path, const SlamPart& part) { WriteFileAtomic(path, EncodeSlamPart(part)); }
 
-SlamPart ReadSlamPart(const fs::path& path) { return DecodeSlamPart(ReadFile(path), path.string()); }
+SlamPart ReadSlamPart(const fs::path& path, bool keep_clouds) {
+  return DecodeSlamPart(ReadFile(path), path.string(), keep_clouds);
+}
+
+Cloud ReadPartCloud(const fs::path& path, uint64_t offset) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path.string(), 0, "keyframes.cloud", "cannot open the part file");
+  in.seekg(static_cast<std::streamoff>(offset));
+  uint64_t n = 0;
+  in.read(reinterpret_cast<char*>(&n), sizeof n);
+  if (!in || n > kMaxPoints) throw InputError(path.string(), 0, "keyframes.cloud", "no cloud at byte " + std::to_string(offset));
+  std::string bytes(sizeof n + n * 3 * sizeof(float) + 1, '\0');
+  std::memcpy(bytes.data(), &n, sizeof n);
+  in.read(bytes.data() + sizeof n, static_cast<std::streamsize>(bytes.size() - sizeof n));
+  if (in && bytes.back()) {  // normals follow
+    bytes.resize(bytes.size() + n * 3 * sizeof(float));
+    in.read(bytes.data() + bytes.size() - n * 3 * sizeof(float), static_cast<std::streamsize>(n * 3 * sizeof(float)));
+  }
+  if (!in) throw InputError(path.string(), 0, "keyframes.cloud", "truncated: the file ends inside the cloud at byte " +
+                                                                     std::to_string(offset));
+  Reader r(bytes, path.string());
+  return r.CloudOf("keyframes.cloud");
+}
 
 std::string PartFileName(const std::string& sequence) { return (sequence.empty() ? "_" : sequence) + ".part"; }
 

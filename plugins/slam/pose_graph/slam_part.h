@@ -39,7 +39,7 @@ struct SlamPart {
   // The stage options it was computed with (ParamSchema::Format): the join
   // refuses parts made with other options than its own.
   std::vector<std::pair<std::string, std::string>> params;
-  std::vector<Keyframe> keyframes;  // ids 0..n-1; context not stored (recomputed from the cloud)
+  std::vector<Keyframe> keyframes;  // ids 0..n-1; context not stored (computed from the cloud on reading)
   PoseGraph graph, before;          // optimised, and the initial estimate
   std::vector<std::pair<int, int>> loops;  // loop edges accepted (min id, max id)
   // Counters of SlamStats the part's steps fill.
@@ -55,10 +55,15 @@ struct SlamPart {
 std::string EncodeSlamPart(const SlamPart& part);
 // Throws InputError naming `name` and the field when the bytes are not a
 // part of this version (truncated, another format, values out of range).
-SlamPart DecodeSlamPart(const std::string& bytes, const std::string& name);
+// Every keyframe's place descriptor (context) is computed from its cloud.
+// `keep_clouds` false: the full clouds are not kept, each keyframe names
+// its cloud's place instead (cloud_file = `name`, cloud_offset).
+SlamPart DecodeSlamPart(const std::string& bytes, const std::string& name, bool keep_clouds = true);
 
 void WriteSlamPart(const fs::path& path, const SlamPart& part);  // atomic
-SlamPart ReadSlamPart(const fs::path& path);
+SlamPart ReadSlamPart(const fs::path& path, bool keep_clouds = true);
+// The full cloud at `offset` of a part file (Keyframe::cloud_offset).
+Cloud ReadPartCloud(const fs::path& path, uint64_t offset);
 
 // The file of a sequence's part in a slam/sequences output folder ("" -> "_").
 std::string PartFileName(const std::string& sequence);

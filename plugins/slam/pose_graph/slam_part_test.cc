@@ -3,6 +3,7 @@
 #include "slam_part.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "locforge/error.h"
 
@@ -83,6 +84,38 @@ TEST(SlamPart, RoundTripIsByteIdenticalAndKeepsEveryValue) {
   EXPECT_EQ(back.odometry_yaw_scale, part.odometry_yaw_scale);
   EXPECT_EQ(back.steps, part.steps);
   EXPECT_EQ(back.iterations, 12);
+}
+
+// Read without its clouds (the join over many parts), a part names where
+// each cloud is, and reading it from there gives the same cloud back.
+TEST(SlamPart, CloudsLeftInTheFileAreReadBackTheSame) {
+  const fs::path dir = fs::temp_directory_path() / ("slam_part_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const SlamPart part = SamplePart();
+  WriteSlamPart(dir / "map_01.part", part);
+  const SlamPart in_memory = ReadSlamPart(dir / "map_01.part");
+  const SlamPart on_disk = ReadSlamPart(dir / "map_01.part", false);
+  ASSERT_EQ(on_disk.keyframes.size(), part.keyframes.size());
+  for (size_t i = 0; i < part.keyframes.size(); ++i) {
+    const Keyframe& kf = on_disk.keyframes[i];
+    EXPECT_TRUE(kf.cloud.empty());
+    EXPECT_EQ(kf.cloud_file, dir / "map_01.part");
+    EXPECT_EQ(kf.context.grid, in_memory.keyframes[i].context.grid);
+    EXPECT_EQ(kf.rough.points, part.keyframes[i].rough.points);
+    const Cloud c = ReadPartCloud(kf.cloud_file, kf.cloud_offset);
+    EXPECT_EQ(c.points, part.keyframes[i].cloud.points) << i;
+    EXPECT_EQ(c.normals, part.keyframes[i].cloud.normals) << i;
+  }
+  // A file cut short after it was read: the cloud's read names the file and field.
+  const std::string bytes = ReadFile(dir / "map_01.part");
+  WriteFileAtomic(dir / "map_01.part", bytes.substr(0, on_disk.keyframes[2].cloud_offset + 20));
+  try {
+    ReadPartCloud(dir / "map_01.part", on_disk.keyframes[2].cloud_offset);
+    ADD_FAILURE() << "a truncated cloud was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'keyframes.cloud'"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
 }
 
 void ExpectRefused(const std::string& bytes, const std::string& field) {
