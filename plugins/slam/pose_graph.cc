@@ -65,7 +65,8 @@ class SequenceSlam : public PerItemStage<PoseGraphStageOptions> {
   static StageMeta Meta() {
     StageMeta meta{"slam", "sequences",
                    "Each sequence's pose-graph SLAM alone (one item per sequence): keyframes, registration and "
-                   "odometry edges, its own loops, optimised; slam/pose_graph joins them",
+                   "odometry edges, its own loops, optimised; slam/pose_graph joins them (it alone reads join_*, "
+                   "map_*, rounds and unjoined)",
                    {{"scans", "kapture.dataset",
                      "Undistorted platform-frame scans (lidar/preprocess, or source/pcd_keyframes)"},
                     RecordingPort()},
