@@ -308,9 +308,13 @@ void SequenceSlam::ProcessItem(RunContext& ctx, const std::string& item) {
   for (const auto& r : scans) stamps.push_back({r.timestamp, SequenceOfScan(r.path)});
   Slam& slam = *setup.slam;
   const auto keyframes_start = std::chrono::steady_clock::now();
-  slam.SelectKeyframes(stamps, [&](size_t i) {
-    return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt"));
-  });
+  slam.SelectKeyframes(
+      stamps, [&](size_t i) { return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt")); },
+      false);
+  if (slam.keyframes().empty()) {  // as the joint run, which leaves such a sequence out
+    ctx.Info("sequences: " + item + ": no scan the odometry covers: no keyframe, left out of the SLAM");
+    return;
+  }
   slam.AddStepTime("keyframes",
                    std::chrono::duration<double>(std::chrono::steady_clock::now() - keyframes_start).count());
   slam.RunWithinParts();

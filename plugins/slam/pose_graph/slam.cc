@@ -63,7 +63,8 @@ Slam::Slam(const SlamOptions& options, const WheelOdometry* odometry, Registrar 
       threads_(threads),
       hooks_(std::move(hooks)) {}
 
-void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::function<Cloud(size_t)>& read) {
+void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::function<Cloud(size_t)>& read,
+                           bool none_is_error) {
   std::map<std::string, Pose> corrections;
   for (const auto& p : o_.initial_poses) {
     std::string seq;
@@ -101,7 +102,7 @@ void Slam::SelectKeyframes(const std::vector<ScanStamp>& scans, const std::funct
     component_.emplace(kf.sequence, manual ? 0 : kf.id);
     keyframes_.push_back(std::move(kf));
   }
-  if (keyframes_.empty())
+  if (keyframes_.empty() && none_is_error)
     throw InputError("records_lidar.txt", 0, "records_lidar",
                      odometry_ ? "no scan covered by odometry" : "no scan");
   if (o_.planar) {

@@ -110,7 +110,9 @@ class Slam {
   void SetWorkerRegistrars(std::vector<std::pair<Registrar, Registrar>> workers) { workers_ = std::move(workers); }
 
   // Keyframes of `scans` (time order; read(i) loads scan i in the rig frame).
-  void SelectKeyframes(const std::vector<ScanStamp>& scans, const std::function<Cloud(size_t)>& read);
+  // None (no scan, or none the odometry covers) throws InputError unless `none_is_error` is false.
+  void SelectKeyframes(const std::vector<ScanStamp>& scans, const std::function<Cloud(size_t)>& read,
+                       bool none_is_error = true);
   // Sequential edges, rounds of joins, loops and optimisation, final checks:
   // RunWithinParts then RunJoins.
   void Run();
