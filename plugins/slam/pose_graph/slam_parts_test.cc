@@ -58,6 +58,25 @@ TEST(Keyframes, OnePerKeyframeDistanceAndAtEverySegmentStart) {
   EXPECT_EQ(SequenceOfScan("5.pcd"), "");
 }
 
+// Scans the odometry does not cover make no keyframe: the joint run refuses
+// a recording without any, slam/sequences leaves such a sequence out.
+TEST(Keyframes, NoneIsAnErrorOnlyWhenAsked) {
+  const WheelParams p{0.1, 0.5, 1024};
+  WheelOdometry odometry(p, StraightTicks(p, 0.5, 2, 1000000));
+  const SlamOptions options;
+  const Registrar none = [](const Cloud&, const Cloud&, const Pose&) { return RegistrationResult{}; };
+  const std::vector<ScanStamp> uncovered = {{900000000, "b"}, {900100000, "b"}};
+  const auto read = [](size_t) { return Cloud{}; };
+  Slam joint(options, &odometry, none, none, 1, {});
+  EXPECT_THROW(joint.SelectKeyframes(uncovered, read), InputError);
+  Slam part(options, &odometry, none, none, 1, {});
+  EXPECT_NO_THROW(part.SelectKeyframes(uncovered, read, false));
+  EXPECT_TRUE(part.keyframes().empty());
+  Slam covered(options, &odometry, none, none, 1, {});
+  covered.SelectKeyframes({{1000000, "a"}, {1500000, "a"}}, read, false);
+  EXPECT_EQ(covered.keyframes().size(), 1u);  // 0.25 m apart: one keyframe
+}
+
 // Wheels that turn every spin 3 % short: the registrations' yaw (noise of
 // 0.05 deg per pair) against the odometry's over one spin in 10 deg steps
 // gives the factor back; too little turning or an implausible factor is not applied.
