@@ -142,21 +142,27 @@ std::vector<RegistrationBackend> AddWorkerRegistrars(RunContext& ctx, const Comp
   return worker_backends;
 }
 
-// The scans in time order, their keyframes selected: the scans' records.
-std::vector<kapture::DataRecord> SelectKeyframes(RunContext& ctx, kapture::Kapture& k, Slam* slam) {
+// The scans' records in time order.
+std::vector<kapture::DataRecord> ScansInTimeOrder(const kapture::Kapture& k) {
   std::vector<kapture::DataRecord> scans = k.ReadDataRecords(kapture::kSensorLidar);
   std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
+  return scans;
+}
+
+// The keyframes of `scans` (time order), timed as the step "keyframes";
+// none_is_error: see Slam::SelectKeyframes.
+void SelectKeyframes(RunContext& ctx, const kapture::Kapture& k, const std::vector<kapture::DataRecord>& scans,
+                     Slam* slam, bool none_is_error = true) {
   std::vector<ScanStamp> stamps;
   for (const auto& r : scans) stamps.push_back({r.timestamp, SequenceOfScan(r.path)});
   const auto keyframes_start = std::chrono::steady_clock::now();
-  slam->SelectKeyframes(stamps, [&](size_t i) {
-    return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt"));
-  });
+  slam->SelectKeyframes(
+      stamps, [&](size_t i) { return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt")); },
+      none_is_error);
   slam->AddStepTime("keyframes",
                     std::chrono::duration<double>(std::chrono::steady_clock::now() - keyframes_start).count());
   ctx.Info("pose_graph: " + std::to_string(slam->keyframes().size()) + " keyframes of " +
            std::to_string(scans.size()) + " scans");
-  return scans;
 }
 
 // Sequences left out of the merged frame: an error with unjoined: error (or
@@ -215,13 +221,6 @@ struct SlamSetup {
   }
 };
 
-// The scans' records in time order.
-std::vector<kapture::DataRecord> ScansInTimeOrder(const kapture::Kapture& k) {
-  std::vector<kapture::DataRecord> scans = k.ReadDataRecords(kapture::kSensorLidar);
-  std::stable_sort(scans.begin(), scans.end(), [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
-  return scans;
-}
-
 // The item of a sequence ("" -> "_": item ids are not empty).
 std::string ItemOf(const std::string& sequence) { return sequence.empty() ? "_" : sequence; }
 
@@ -271,13 +270,12 @@ void PoseGraphSlam::Run(RunContext& ctx) {
   Slam& slam = *setup.slam;
   const fs::path scans_root = ctx.Input("scans");
   kapture::Kapture k(scans_root);
-  std::vector<kapture::DataRecord> scans;
+  const std::vector<kapture::DataRecord> scans = ScansInTimeOrder(k);
   if (ctx.HasInput("parts")) {
-    scans = ScansInTimeOrder(k);
     slam.AdoptParts(ReadParts(ctx, ctx.Input("parts"), Schema().Format(o), o.slam.join_clouds_in_memory == 0));
     slam.RunJoins();
   } else {
-    scans = SelectKeyframes(ctx, k, &slam);
+    SelectKeyframes(ctx, k, scans, &slam);
     slam.Run();
   }
   CheckJoins(ctx, slam, o.slam);
@@ -290,7 +288,7 @@ std::vector<std::string> SequenceSlam::ListItems(RunContext& ctx) {
   std::set<std::string> items;
   for (const auto& r : kapture::Kapture(ctx.Input("scans")).ReadDataRecords(kapture::kSensorLidar)) {
     const std::string sequence = SequenceOfScan(r.path);
-    if (!sequence.empty() && sequence == "_")
+    if (sequence == "_")
       throw InputError("records_lidar.txt", 0, "sequence", "a sequence named '_' (the name of scans without one)");
     items.insert(ItemOf(sequence));
   }
@@ -304,19 +302,12 @@ void SequenceSlam::ProcessItem(RunContext& ctx, const std::string& item) {
   std::vector<kapture::DataRecord> scans;
   for (auto& r : ScansInTimeOrder(k))
     if (ItemOf(SequenceOfScan(r.path)) == item) scans.push_back(std::move(r));
-  std::vector<ScanStamp> stamps;
-  for (const auto& r : scans) stamps.push_back({r.timestamp, SequenceOfScan(r.path)});
   Slam& slam = *setup.slam;
-  const auto keyframes_start = std::chrono::steady_clock::now();
-  slam.SelectKeyframes(
-      stamps, [&](size_t i) { return ReadScan(k.ExistingRecordDataPath(scans[i].path, "sensors/records_lidar.txt")); },
-      false);
+  SelectKeyframes(ctx, k, scans, &slam, false);
   if (slam.keyframes().empty()) {  // as the joint run, which leaves such a sequence out
     ctx.Info("sequences: " + item + ": no scan the odometry covers: no keyframe, left out of the SLAM");
     return;
   }
-  slam.AddStepTime("keyframes",
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - keyframes_start).count());
   slam.RunWithinParts();
   SlamPart part = slam.ExportPart();
   part.params = Schema().Format(o);

@@ -545,32 +545,15 @@ SlamPart Slam::ExportPart() const {
   for (const Keyframe& kf : keyframes_) {
     if (kf.sequence != part.sequence)
       throw Error("slam: a part holds one sequence; keyframes of " + part.sequence + " and " + kf.sequence);
-    Keyframe copy;
-    copy.id = kf.id;
-    copy.timestamp = kf.timestamp;
-    copy.sequence = kf.sequence;
-    copy.travelled = kf.travelled;
-    copy.cloud = kf.cloud;
-    copy.rough = kf.rough;
-    part.keyframes.push_back(std::move(copy));
+    part.keyframes.push_back(kf);
   }
   part.manual = manual_.count(part.sequence) > 0;
   part.graph.nodes = graph_.nodes;
   part.graph.edges = graph_.edges;
   part.before.nodes = before_.nodes;
   part.loops.assign(accepted_.begin(), accepted_.end());
-  const SlamStats& s = stats_;
-  part.sequential_fallbacks = s.sequential_fallbacks;
-  part.information_fallbacks = s.information_fallbacks;
-  part.refinements = s.refinements;
-  part.refinements_rejected = s.refinements_rejected;
-  part.sequential_reregistered = s.sequential_reregistered;
-  part.loop_tests = s.loop_tests;
-  part.odometry_yaw_scale.assign(s.odometry_yaw_scale.begin(), s.odometry_yaw_scale.end());
-  part.initial_cost = s.summary.initial_cost;
-  part.final_cost = s.summary.final_cost;
-  part.iterations = s.summary.iterations;
-  part.steps = s.steps;
+  part.stats = stats_;
+  part.stats.summary.report.clear();
   return part;
 }
 
@@ -614,17 +597,18 @@ void Slam::AdoptParts(std::vector<SlamPart> parts) {
     }
     if (part.manual) manual_.insert(part.sequence);
     component_[part.sequence] = part.manual ? 0 : id[p].front();
-    stats_.sequential_fallbacks += part.sequential_fallbacks;
-    stats_.information_fallbacks += part.information_fallbacks;
-    stats_.refinements += part.refinements;
-    stats_.refinements_rejected += part.refinements_rejected;
-    stats_.sequential_reregistered += part.sequential_reregistered;
-    stats_.loop_tests += part.loop_tests;
-    for (const auto& [seq, k] : part.odometry_yaw_scale) stats_.odometry_yaw_scale[seq] = k;
-    stats_.summary.initial_cost += part.initial_cost;
-    stats_.summary.final_cost += part.final_cost;
-    stats_.summary.iterations += part.iterations;
-    for (const auto& [step, seconds] : part.steps) AddStepTime(step, seconds);  // CPU of the parts, summed
+    const SlamStats& st = part.stats;
+    stats_.sequential_fallbacks += st.sequential_fallbacks;
+    stats_.information_fallbacks += st.information_fallbacks;
+    stats_.refinements += st.refinements;
+    stats_.refinements_rejected += st.refinements_rejected;
+    stats_.sequential_reregistered += st.sequential_reregistered;
+    stats_.loop_tests += st.loop_tests;
+    for (const auto& [seq, k] : st.odometry_yaw_scale) stats_.odometry_yaw_scale[seq] = k;
+    stats_.summary.initial_cost += st.summary.initial_cost;
+    stats_.summary.final_cost += st.summary.final_cost;
+    stats_.summary.iterations += st.summary.iterations;
+    for (const auto& [step, seconds] : st.steps) AddStepTime(step, seconds);  // CPU of the parts, summed
   }
   if (o_.planar) {
     graph_.planar_sigma_z = o_.planar_sigma_z_m;

@@ -148,21 +148,23 @@ std::string EncodeSlamPart(const SlamPart& part) {
     w.Put<int32_t>(a);
     w.Put<int32_t>(b);
   }
-  for (int v : {part.sequential_fallbacks, part.information_fallbacks, part.refinements, part.refinements_rejected,
-                part.sequential_reregistered})
+  const SlamStats& st = part.stats;
+  for (int v : {st.sequential_fallbacks, st.information_fallbacks, st.refinements, st.refinements_rejected,
+                st.sequential_reregistered})
     w.Put<int32_t>(v);
-  w.Put<int64_t>(part.loop_tests);
-  for (const auto* list : {&part.odometry_yaw_scale, &part.steps}) {
-    if (list == &part.steps) {
-      w.Put<double>(part.initial_cost);
-      w.Put<double>(part.final_cost);
-      w.Put<int32_t>(part.iterations);
-    }
-    w.Put<uint32_t>(static_cast<uint32_t>(list->size()));
-    for (const auto& [k, v] : *list) {
-      w.Str(k);
-      w.Put<double>(v);
-    }
+  w.Put<int64_t>(st.loop_tests);
+  w.Put<uint32_t>(static_cast<uint32_t>(st.odometry_yaw_scale.size()));
+  for (const auto& [sequence, k] : st.odometry_yaw_scale) {
+    w.Str(sequence);
+    w.Put<double>(k);
+  }
+  w.Put<double>(st.summary.initial_cost);
+  w.Put<double>(st.summary.final_cost);
+  w.Put<int32_t>(st.summary.iterations);
+  w.Put<uint32_t>(static_cast<uint32_t>(st.steps.size()));
+  for (const auto& [step, seconds] : st.steps) {
+    w.Str(step);
+    w.Put<double>(seconds);
   }
   return std::move(w.bytes());
 }
@@ -226,20 +228,21 @@ SlamPart DecodeSlamPart(const std::string& bytes, const std::string& name, bool 
     const int a = id("loops");
     part.loops.emplace_back(a, id("loops"));
   }
-  for (int* v : {&part.sequential_fallbacks, &part.information_fallbacks, &part.refinements,
-                 &part.refinements_rejected, &part.sequential_reregistered})
+  SlamStats& st = part.stats;
+  for (int* v : {&st.sequential_fallbacks, &st.information_fallbacks, &st.refinements, &st.refinements_rejected,
+                 &st.sequential_reregistered})
     *v = r.Get<int32_t>("stats");
-  part.loop_tests = r.Get<int64_t>("stats.loop_tests");
-  for (auto* list : {&part.odometry_yaw_scale, &part.steps}) {
-    if (list == &part.steps) {
-      part.initial_cost = r.Get<double>("stats.initial_cost");
-      part.final_cost = r.Get<double>("stats.final_cost");
-      part.iterations = r.Get<int32_t>("stats.iterations");
-    }
-    for (uint64_t n = r.Count("stats"), i = 0; i < n; ++i) {
-      std::string k = r.Str("stats");
-      list->emplace_back(std::move(k), r.Get<double>("stats"));
-    }
+  st.loop_tests = r.Get<int64_t>("stats.loop_tests");
+  for (uint64_t n = r.Count("stats.odometry_yaw_scale"), i = 0; i < n; ++i) {
+    std::string sequence = r.Str("stats.odometry_yaw_scale");
+    st.odometry_yaw_scale[sequence] = r.Get<double>("stats.odometry_yaw_scale");
+  }
+  st.summary.initial_cost = r.Get<double>("stats.initial_cost");
+  st.summary.final_cost = r.Get<double>("stats.final_cost");
+  st.summary.iterations = r.Get<int32_t>("stats.iterations");
+  for (uint64_t n = r.Count("stats.steps"), i = 0; i < n; ++i) {
+    std::string step = r.Str("stats.steps");
+    st.steps.emplace_back(std::move(step), r.Get<double>("stats.steps"));
   }
   if (!r.AtEnd()) r.Fail("end", "bytes after the part");
   return part;

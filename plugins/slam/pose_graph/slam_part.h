@@ -28,10 +28,9 @@
 #include "keyframes.h"
 #include "locforge/fs.h"
 #include "pose_graph.h"
+#include "slam_stats.h"
 
 namespace locforge::lidar {
-
-struct SlamStats;
 
 struct SlamPart {
   std::string sequence;
@@ -42,14 +41,9 @@ struct SlamPart {
   std::vector<Keyframe> keyframes;  // ids 0..n-1; context not stored (computed from the cloud on reading)
   PoseGraph graph, before;          // optimised, and the initial estimate
   std::vector<std::pair<int, int>> loops;  // loop edges accepted (min id, max id)
-  // Counters of SlamStats the part's steps fill.
-  int sequential_fallbacks = 0, information_fallbacks = 0, refinements = 0, refinements_rejected = 0;
-  int sequential_reregistered = 0;
-  int64_t loop_tests = 0;
-  std::vector<std::pair<std::string, double>> odometry_yaw_scale;
-  double initial_cost = 0, final_cost = 0;
-  int iterations = 0;
-  std::vector<std::pair<std::string, double>> steps;
+  // The counts and times of the part's own steps (those of joins are 0;
+  // summary.report is not stored).
+  SlamStats stats;
 };
 
 std::string EncodeSlamPart(const SlamPart& part);

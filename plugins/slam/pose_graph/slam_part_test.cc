@@ -42,14 +42,14 @@ SlamPart SamplePart() {
   part.graph.edges[1].from = 1;
   part.graph.edges[1].loop = false;
   part.loops = {{0, 2}};
-  part.sequential_fallbacks = 1;
-  part.refinements = 7;
-  part.loop_tests = 1234567890123;
-  part.odometry_yaw_scale = {{"map_01", 1.0123}};
-  part.initial_cost = 25100.4;
-  part.final_cost = 3.7;
-  part.iterations = 12;
-  part.steps = {{"keyframes", 0.5}, {"sequential edges", 2.25}};
+  part.stats.sequential_fallbacks = 1;
+  part.stats.refinements = 7;
+  part.stats.loop_tests = 1234567890123;
+  part.stats.odometry_yaw_scale = {{"map_01", 1.0123}};
+  part.stats.summary.initial_cost = 25100.4;
+  part.stats.summary.final_cost = 3.7;
+  part.stats.summary.iterations = 12;
+  part.stats.steps = {{"keyframes", 0.5}, {"sequential edges", 2.25}};
   return part;
 }
 
@@ -80,10 +80,10 @@ TEST(SlamPart, RoundTripIsByteIdenticalAndKeepsEveryValue) {
   EXPECT_EQ(back.graph.edges[1].from, 1);
   EXPECT_FALSE(back.graph.edges[1].loop);
   EXPECT_EQ(back.loops, part.loops);
-  EXPECT_EQ(back.loop_tests, part.loop_tests);
-  EXPECT_EQ(back.odometry_yaw_scale, part.odometry_yaw_scale);
-  EXPECT_EQ(back.steps, part.steps);
-  EXPECT_EQ(back.iterations, 12);
+  EXPECT_EQ(back.stats.loop_tests, part.stats.loop_tests);
+  EXPECT_EQ(back.stats.odometry_yaw_scale, part.stats.odometry_yaw_scale);
+  EXPECT_EQ(back.stats.steps, part.stats.steps);
+  EXPECT_EQ(back.stats.summary.iterations, 12);
 }
 
 // Read without its clouds (the join over many parts), a part names where
