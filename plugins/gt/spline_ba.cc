@@ -46,8 +46,9 @@ void OuterLoopOptions::Declare(ParamSchema<OuterLoopOptions>& s) {
         "with estimate_time_offsets: hold the mean offset at 0 (a common offset looks like a common camera yaw)");
   s.Add("max_iterations", &O::ba, &sfm::SplineBAOptions::max_iterations, "solver iterations per round").Range(1, 10000);
   s.Add("linear_solver", &O::ba, &sfm::SplineBAOptions::linear_solver,
-        "BA linear solver: auto (sparse_schur up to sparse_schur_max_images images), sparse_schur, iterative_schur, dense_schur")
-      .Choices({"auto", "sparse_schur", "iterative_schur", "dense_schur"});
+        "BA linear solver: auto (sparse_schur up to sparse_schur_max_images images), sparse_schur, iterative_schur, "
+        "dense_schur (Ceres'), or parallel_schur (our Levenberg-Marquardt, reduced system assembled by every thread without locks)")
+      .Choices({"auto", "sparse_schur", "iterative_schur", "dense_schur", "parallel_schur"});
   s.Add("sparse_library", &O::ba, &sfm::SplineBAOptions::sparse_library,
         "sparse Cholesky of sparse_schur: suite_sparse (CHOLMOD on the system BLAS) or eigen_sparse (no BLAS)")
       .Choices({"suite_sparse", "eigen_sparse"});

@@ -271,7 +271,7 @@ OuterLoop::RoundResult OuterLoop::RunRound(int round, double threshold) {
   ctx_.Info("round " + std::to_string(round) + ": filter " + FormatDouble(threshold) + " px, " +
             std::to_string(model.points3d.size()) + " points, reproj " + Fixed(before.mean_px, 3) + " -> " +
             Fixed(after, 3) + " px, pose change " + Fixed(100 * change.position_m, 3) + " cm / " +
-            Fixed(change.rotation_deg, 4) + " deg" +
+            Fixed(change.rotation_deg, 4) + " deg; BA: " + result.message +
             (index.skipped_images ? ", " + std::to_string(index.skipped_images) + " images outside every trajectory" : ""));
   rounds_.rows.push_back({std::to_string(round), FormatDouble(threshold), std::to_string(problem.images.size()),
                           std::to_string(problem.points.size()), std::to_string(problem.observations.size()),

@@ -9,6 +9,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstddef>
 #include <memory>
 #include <memory_resource>
@@ -16,6 +17,7 @@
 #include <sstream>
 
 #include "cost_functions.h"
+#include "schur_lm.h"
 
 namespace locforge::sfm {
 
@@ -47,8 +49,9 @@ std::string SplineBAOptions::CheckMessage() const {
   if (!positive(max_time_offset_s) || max_time_offset_s >= knot_spacing_s)
     return "max_time_offset_s must be in (0, knot_spacing_s)";
   if (linear_solver != "auto" && linear_solver != "sparse_schur" && linear_solver != "iterative_schur" &&
-      linear_solver != "dense_schur")
-    return "linear_solver must be auto, sparse_schur, iterative_schur or dense_schur (got '" + linear_solver + "')";
+      linear_solver != "dense_schur" && linear_solver != "parallel_schur")
+    return "linear_solver must be auto, sparse_schur, iterative_schur, dense_schur or parallel_schur (got '" +
+           linear_solver + "')";
   if (sparse_library != "suite_sparse" && sparse_library != "eigen_sparse")
     return "sparse_library must be suite_sparse or eigen_sparse (got '" + sparse_library + "')";
   return "";
@@ -657,6 +660,40 @@ void ReadBack(const ceres::Solver::Summary& summary, const Parameters& x, bool s
   }
 }
 
+// The same problem minimised by SolveSchurLM (schur_lm.h) instead of Ceres.
+// `ordering` null: no point to eliminate (the whole problem is the reduced system).
+void SolveWithSchurLM(Assembly& a, const ceres::ParameterBlockOrdering* ordering) {
+  SchurLMOptions lm;
+  lm.max_iterations = a.options.max_iterations;
+  lm.function_tolerance = a.options.function_tolerance;
+  lm.gradient_tolerance = a.options.gradient_tolerance;
+  lm.parameter_tolerance = a.options.parameter_tolerance;
+  lm.num_threads = a.options.num_threads;
+  lm.verbose = a.options.verbose;
+  lm.cancelled = a.options.cancelled;
+  std::vector<double*> points;
+  if (ordering) points.assign(ordering->group_to_elements().at(0).begin(), ordering->group_to_elements().at(0).end());
+  const SchurLMSummary summary = SolveSchurLM(lm, points, &a.ceres);
+  SplineBAResult& result = a.result;
+  result.iterations = summary.iterations;
+  result.initial_cost = summary.initial_cost;
+  result.final_cost = summary.final_cost;
+  result.converged = summary.converged;
+  result.cancelled = summary.cancelled;
+  result.usable = summary.usable && !summary.cancelled;
+  char seconds[240];
+  std::snprintf(seconds, sizeof seconds,
+                " (residuals and Jacobians %.2f s, steps %.2f s of which factorisation %.2f s; reduced system %ld "
+                "columns, factor %.3g nonzeros)",
+                summary.evaluate_seconds, summary.step_seconds, summary.factorize_seconds, summary.reduced_columns,
+                summary.factor_nonzeros);
+  result.message = summary.message + seconds;
+  if (result.usable) {
+    CopyOut(a.x, a.options.use_spline_prior, &a.problem, &result);
+    result.final_mean_reproj_px = MeanReprojectionError(a.problem);
+  }
+}
+
 }  // namespace
 
 // Build problem -> solve -> read back.
@@ -691,6 +728,11 @@ SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem) {
   }
   const std::shared_ptr<ceres::ParameterBlockOrdering> ordering = SchurOrdering(a);
   result.num_parameters = FreeParameters(a.ceres);
+  if (options.linear_solver == "parallel_schur") {
+    SolveWithSchurLM(a, ordering.get());
+    result.seconds = elapsed();
+    return result;
+  }
   ceres::Solver::Options solver = SolverOptions(options, ordering, problem->images.size());
   std::optional<CancellationCallback> cancellation;
   if (options.cancelled) solver.callbacks.push_back(&cancellation.emplace(options.cancelled));
