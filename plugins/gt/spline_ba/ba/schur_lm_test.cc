@@ -151,6 +151,20 @@ TEST(SchurLM, FitsACurveWithoutPoints) {
   EXPECT_NEAR(mc[1], 0.1, 1e-3);
 }
 
+// A raised cancellation flag stops the solve before its next step; RunSplineBA
+// then reports it and writes nothing back.
+TEST(SchurLM, StopsWhenCancelled) {
+  BAProblem problem = Scene().initial;
+  SplineBAOptions options = Options("parallel_schur", 2);
+  int polls = 0;
+  options.cancelled = [&polls] { return ++polls > 3; };
+  const SplineBAResult result = RunSplineBA(options, &problem);
+  EXPECT_TRUE(result.cancelled) << result.message;
+  EXPECT_FALSE(result.usable);
+  EXPECT_EQ(polls, 4);
+  EXPECT_EQ(problem.images[0].T_world_camera.t, Scene().initial.images[0].T_world_camera.t);
+}
+
 struct Difference {
   template <typename T>
   bool operator()(const T* p, const T* q, T* r) const {
