@@ -6,6 +6,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -98,30 +99,64 @@ struct Residual {
   std::vector<int> point_slot;  // per parameter: its slot in the point's reduced blocks, -1 if none
 };
 
+// The reduced system damped for one trust-region radius, and the step it
+// gives. The reduced matrix is CHOLMOD's lower triangle by columns: CHOLMOD's
+// column i is our scalar row i of the upper block triangle (in a diagonal
+// block the entries left of the diagonal are stored, and CHOLMOD ignores them).
+struct Damped {
+  Damped() = default;
+  Damped(const Damped&) = delete;
+  Damped& operator=(const Damped&) = delete;
+  ~Damped() {
+    if (factor) cholmod_l_free_factor(&factor, &common);
+    if (matrix) cholmod_l_free_sparse(&matrix, &common);
+    if (started) cholmod_l_finish(&common);
+  }
+  double radius = 0;
+  cholmod_common common{};  // one per system: two may be factorised at once
+  bool started = false;
+  cholmod_sparse* matrix = nullptr;
+  cholmod_factor* factor = nullptr;
+  double* values = nullptr;  // matrix->x
+  std::vector<double> e, e_inverse;  // by point: e = E^-1 bp, E^-1 (3 x 3)
+  std::vector<double> rhs, step;     // the reduced right-hand side; the whole step (scaled coordinates)
+  bool solved = false;               // false: the damped system is not positive definite (a rejected step)
+  double model_change = 0;           // the decrease of the linearised cost the step predicts
+  std::string failed;                // an error that ends the solve
+};
+
 class Solver {
  public:
   Solver(const SchurLMOptions& options, ceres::Problem* problem) : options_(options), problem_(*problem) {}
-  ~Solver() {
-    if (factor_) cholmod_l_free_factor(&factor_, &common_);
-    if (matrix_) cholmod_l_free_sparse(&matrix_, &common_);
-    if (started_) cholmod_l_finish(&common_);
-  }
 
   SchurLMSummary Run(const std::vector<double*>& eliminate);
 
  private:
   std::string Structure(const std::vector<double*>& eliminate);
+  void Order(const std::vector<int>& uses);
+  void Storage();
   void Pattern();
   bool Linearize(bool first);
+  void Robustify(int k);
+  void JacobiScaling();
   bool Cost(double* cost);
-  bool Step(double radius, double* model_change);
+  std::string Prepare(const std::vector<double*>& eliminate, double* cost);
+  std::string Iterate(double cost);
+  bool TryStep(const Damped& d, double cost, double* new_cost, double* rho, std::string* stop);
+  void Steps(Damped* first, Damped* second);
+  void AssembleRow(Damped& d, int row, bool write_gradient);
+  void HoldActiveBounds(Damped& d);
+  void Factorize(Damped& d);
+  void Finish(Damped& d);
   void Save();
   void Restore();
-  void Candidate();
-  double StepNorm() const;
+  void Candidate(const std::vector<double>& step);
+  double StepNorm(const std::vector<double>& step) const;
   double StateNorm() const;
 
-  double& S(int row, int a, int col_pos, int b) { return values_[colptr_[reduced_offset(row) + a] + col_pos + b]; }
+  double& S(Damped& d, int row, int a, int col_pos, int b) {
+    return d.values[colptr_[reduced_offset(row) + a] + col_pos + b];
+  }
   int reduced_offset(int r) const { return blocks_[reduced_[r]].offset; }
   int ColumnPosition(int row, int col) const {
     const auto& cols = row_cols_[row];
@@ -148,22 +183,17 @@ class Solver {
 
   std::vector<double> plus_jacobians_, jacobians_, residual_values_, residual_cost_, scale_;
   std::vector<double> w_;              // by point and slot: W = Jp^T Jc (3 x tangent)
-  std::vector<double> e_, e_inverse_;  // by point: e = E^-1 bp, E^-1 (3 x 3)
-  std::vector<double> rhs_, step_, gradient_, model_;
+  std::vector<double> gradient_, model_;
   std::vector<double> saved_;  // the free blocks' values before a candidate step
 
-  // The reduced system as CHOLMOD's lower triangle by columns: CHOLMOD's
-  // column i is our scalar row i of the upper block triangle (in a diagonal
-  // block the entries left of the diagonal are stored, and CHOLMOD ignores them).
-  cholmod_common common_{};
-  bool started_ = false;
-  cholmod_sparse* matrix_ = nullptr;
-  cholmod_factor* factor_ = nullptr;
-  SuiteSparse_long* colptr_ = nullptr;
-  double* values_ = nullptr;
+  // With two threads or more, the step at the next smaller radius is
+  // computed beside the current one (speculation): a rejected step then
+  // costs no factorisation of its own. Either way the steps are the same bits.
+  bool speculate_ = false;
+  std::array<Damped, 2> damped_;
+  SuiteSparse_long* colptr_ = nullptr;  // the pattern both systems share
 
   SchurLMSummary summary_;
-  std::string failed_;  // an error that ends the solve (not a rejected step)
 };
 
 std::string Solver::Structure(const std::vector<double*>& eliminate) {
@@ -230,9 +260,15 @@ std::string Solver::Structure(const std::vector<double*>& eliminate) {
     }
     residuals_.push_back(std::move(r));
   }
+  Order(uses);
+  Storage();
+  return "";
+}
 
-  // Reduced blocks in ascending number of point terms: the camera-wide blocks
-  // (intrinsics) come last, so the rows that own them hold few cells.
+// Reduced blocks in ascending number of point terms (`uses`): the
+// camera-wide blocks (intrinsics) come last, so the rows that own them hold
+// few cells. Then every free block's place in the tangent vector.
+void Solver::Order(const std::vector<int>& uses) {
   for (size_t b = 0; b < blocks_.size(); ++b)
     if (!blocks_[b].constant && blocks_[b].point < 0) reduced_.push_back(static_cast<int>(b));
   std::stable_sort(reduced_.begin(), reduced_.end(), [&](int a, int b) { return uses[a] < uses[b]; });
@@ -254,8 +290,10 @@ std::string Solver::Structure(const std::vector<double*>& eliminate) {
       plus += b.size * b.tangent;
     }
   plus_jacobians_.resize(plus);
+}
 
-  // Jacobian storage and the points' slots.
+// Jacobian storage and the points' slots.
+void Solver::Storage() {
   point_cams_.resize(points_.size());
   point_slot_offset_.resize(points_.size());
   int jac = 0;
@@ -268,7 +306,7 @@ std::string Solver::Structure(const std::vector<double*>& eliminate) {
     }
   }
   jacobians_.resize(jac);
-  residual_values_.resize(values);
+  residual_values_.resize(residuals_.empty() ? 0 : residuals_.back().values + residuals_.back().size);
   residual_cost_.resize(residuals_.size());
   model_.resize(residuals_.size());
   int w = 0;
@@ -291,13 +329,14 @@ std::string Solver::Structure(const std::vector<double*>& eliminate) {
       r.point_slot.push_back(slot);
     }
   w_.resize(w);
-  e_.resize(3 * points_.size());
-  e_inverse_.resize(9 * points_.size());
-  rhs_.resize(offset);
-  step_.resize(offset);
-  gradient_.resize(offset);
-  scale_.assign(offset, 1.0);
-  return "";
+  for (Damped& d : damped_) {
+    d.e.resize(3 * points_.size());
+    d.e_inverse.resize(9 * points_.size());
+    d.rhs.resize(num_tangent_);
+    d.step.resize(num_tangent_);
+  }
+  gradient_.resize(num_tangent_);
+  scale_.assign(num_tangent_, 1.0);
 }
 
 // The reduced system's block pattern and CHOLMOD's symbolic analysis.
@@ -342,13 +381,17 @@ void Solver::Pattern() {
       const int c = row_cols_[r][k];
       if (c != r && !blocks_[reduced_[c]].lower.empty()) bounded_columns_[c].emplace_back(r, row_col_pos_[r][k]);
     }
-  cholmod_l_start(&common_);
-  started_ = true;
-  common_.print = 0;
-  matrix_ = cholmod_l_allocate_sparse(n, n, nnz, /*sorted=*/1, /*packed=*/1, /*stype=*/-1, CHOLMOD_REAL, &common_);
-  colptr_ = static_cast<SuiteSparse_long*>(matrix_->p);
-  auto* rowind = static_cast<SuiteSparse_long*>(matrix_->i);
-  values_ = static_cast<double*>(matrix_->x);
+  speculate_ = options_.num_threads >= 2 && n > 0;
+  for (Damped& d : damped_) {
+    cholmod_l_start(&d.common);
+    d.started = true;
+    d.common.print = 0;
+  }
+  Damped& first = damped_[0];
+  first.matrix = cholmod_l_allocate_sparse(n, n, nnz, /*sorted=*/1, /*packed=*/1, /*stype=*/-1, CHOLMOD_REAL, &first.common);
+  colptr_ = static_cast<SuiteSparse_long*>(first.matrix->p);
+  auto* rowind = static_cast<SuiteSparse_long*>(first.matrix->i);
+  first.values = static_cast<double*>(first.matrix->x);
   SuiteSparse_long at = 0;
   for (int r = 0; r < num_reduced_; ++r)
     for (int a = 0; a < blocks_[reduced_[r]].tangent; ++a) {
@@ -357,10 +400,16 @@ void Solver::Pattern() {
         for (int b = 0; b < blocks_[reduced_[c]].tangent; ++b) rowind[at++] = reduced_offset(c) + b;
     }
   colptr_[n] = at;
-  std::fill(values_, values_ + nnz, 0.0);
-  if (n > 0) factor_ = cholmod_l_analyze(matrix_, &common_);
+  std::fill(first.values, first.values + nnz, 0.0);
+  if (n > 0) first.factor = cholmod_l_analyze(first.matrix, &first.common);
   summary_.reduced_columns = n;
-  summary_.factor_nonzeros = common_.lnz;
+  summary_.factor_nonzeros = first.common.lnz;
+  if (speculate_) {
+    Damped& second = damped_[1];
+    second.matrix = cholmod_l_copy_sparse(first.matrix, &second.common);
+    second.values = static_cast<double*>(second.matrix->x);
+    second.factor = cholmod_l_analyze(second.matrix, &second.common);  // the same ordering: same input
+  }
 }
 
 // Residuals, robust-loss-corrected Jacobians in the tangent spaces, scaled
@@ -409,54 +458,11 @@ bool Solver::Linearize(bool first) {
         else
           out = in;
       }
-      Eigen::Map<Eigen::VectorXd> rv(res, r.size);
-      const double sq = rv.squaredNorm();
-      if (!r.loss) {
-        residual_cost_[k] = 0.5 * sq;
-        continue;
-      }
-      // Triggs' correction (Ceres' Corrector): the robustified problem as a
-      // least-squares one with rescaled residuals and Jacobians.
-      double rho[3];
-      r.loss->Evaluate(sq, rho);
-      residual_cost_[k] = 0.5 * rho[0];
-      const double sqrt_rho1 = std::sqrt(rho[1]);
-      double residual_scaling = sqrt_rho1, alpha_sq_norm = 0;
-      if (sq > 0 && rho[2] > 0) {
-        const double alpha = 1.0 - std::sqrt(1.0 + 2.0 * sq * rho[2] / rho[1]);
-        residual_scaling = sqrt_rho1 / (1 - alpha);
-        alpha_sq_norm = alpha / sq;
-      }
-      for (size_t j = 0; j < nb; ++j) {
-        const Block& b = blocks_[r.blocks[j]];
-        if (b.constant) continue;
-        MapRM J(&jacobians_[r.jacobian[j]], r.size, b.tangent);
-        if (alpha_sq_norm == 0) {
-          J *= sqrt_rho1;
-        } else {
-          const Eigen::RowVectorXd rtj = rv.transpose() * J;
-          J = sqrt_rho1 * (J - alpha_sq_norm * rv * rtj);
-        }
-      }
-      rv *= residual_scaling;
+      Robustify(k);
     }
   });
   if (!ok) return false;
-
-  if (first) {  // column norms, each summed over its residuals in their order
-    ParallelFor(static_cast<int>(blocks_.size()), threads, 64, [&](int i) {
-      const Block& b = blocks_[i];
-      if (b.constant) return;
-      const std::vector<int>& list = b.point >= 0 ? point_residuals_[b.point] : row_residuals_[b.reduced];
-      Eigen::VectorXd norms = Eigen::VectorXd::Zero(b.tangent);
-      for (int k : list) {
-        const Residual& r = residuals_[k];
-        const size_t j = std::find(r.blocks.begin(), r.blocks.end(), i) - r.blocks.begin();
-        norms += ConstMapRM(&jacobians_[r.jacobian[j]], r.size, b.tangent).colwise().squaredNorm().transpose();
-      }
-      for (int a = 0; a < b.tangent; ++a) scale_[b.offset + a] = 1.0 / (1.0 + std::sqrt(norms[a]));
-    });
-  }
+  if (first) JacobiScaling();
   ParallelFor(count, threads, 256, [&](int k) {
     const Residual& r = residuals_[k];
     for (size_t j = 0; j < r.blocks.size(); ++j) {
@@ -467,6 +473,59 @@ bool Solver::Linearize(bool first) {
     }
   });
   return true;
+}
+
+// Residual k's cost, then Triggs' correction (Ceres' Corrector): the
+// robustified problem as a least-squares one with rescaled residuals and
+// Jacobians.
+void Solver::Robustify(int k) {
+  const Residual& r = residuals_[k];
+  const size_t nb = r.blocks.size();
+  Eigen::Map<Eigen::VectorXd> rv(&residual_values_[r.values], r.size);
+  const double sq = rv.squaredNorm();
+  if (!r.loss) {
+    residual_cost_[k] = 0.5 * sq;
+    return;
+  }
+  double rho[3];
+  r.loss->Evaluate(sq, rho);
+  residual_cost_[k] = 0.5 * rho[0];
+  const double sqrt_rho1 = std::sqrt(rho[1]);
+  double residual_scaling = sqrt_rho1, alpha_sq_norm = 0;
+  if (sq > 0 && rho[2] > 0) {
+    const double alpha = 1.0 - std::sqrt(1.0 + 2.0 * sq * rho[2] / rho[1]);
+    residual_scaling = sqrt_rho1 / (1 - alpha);
+    alpha_sq_norm = alpha / sq;
+  }
+  for (size_t j = 0; j < nb; ++j) {
+    const Block& b = blocks_[r.blocks[j]];
+    if (b.constant) continue;
+    MapRM J(&jacobians_[r.jacobian[j]], r.size, b.tangent);
+    if (alpha_sq_norm == 0) {
+      J *= sqrt_rho1;
+    } else {
+      const Eigen::RowVectorXd rtj = rv.transpose() * J;
+      J = sqrt_rho1 * (J - alpha_sq_norm * rv * rtj);
+    }
+  }
+  rv *= residual_scaling;
+}
+
+// Ceres' Jacobi scaling, from the first linearisation's column norms (each
+// summed over its residuals in their order).
+void Solver::JacobiScaling() {
+  ParallelFor(static_cast<int>(blocks_.size()), options_.num_threads, 64, [&](int i) {
+    const Block& b = blocks_[i];
+    if (b.constant) return;
+    const std::vector<int>& list = b.point >= 0 ? point_residuals_[b.point] : row_residuals_[b.reduced];
+    Eigen::VectorXd norms = Eigen::VectorXd::Zero(b.tangent);
+    for (int k : list) {
+      const Residual& r = residuals_[k];
+      const size_t j = std::find(r.blocks.begin(), r.blocks.end(), i) - r.blocks.begin();
+      norms += ConstMapRM(&jacobians_[r.jacobian[j]], r.size, b.tangent).colwise().squaredNorm().transpose();
+    }
+    for (int a = 0; a < b.tangent; ++a) scale_[b.offset + a] = 1.0 / (1.0 + std::sqrt(norms[a]));
+  });
 }
 
 // The cost at the parameters' current values; false when a residual cannot
@@ -500,16 +559,17 @@ bool Solver::Cost(double* cost) {
   return std::isfinite(sum);
 }
 
-// The Levenberg-Marquardt step in the scaled coordinates at trust region
-// `radius` into step_, and the decrease of the linearised cost it predicts.
-// False when the damped reduced system is not positive definite.
-bool Solver::Step(double radius, double* model_change) {
+// The Levenberg-Marquardt steps of the damped systems `first` and (when not
+// null) `second`, each at its own radius, in their scaled coordinates: the
+// points' terms once, each system's rows, both factorisations at once.
+void Solver::Steps(Damped* first, Damped* second) {
   const int threads = options_.num_threads;
+  Damped* systems[2] = {first, second};
+  const int count = second ? 2 : 1;
   const double lo = options_.min_lm_diagonal, hi = options_.max_lm_diagonal;
-  auto damping = [&](double d) { return std::clamp(d, lo, hi) / radius; };
-  std::atomic<bool> point_ok{true};
+  std::atomic<bool> point_ok[2] = {true, true};
 
-  // Points: E, bp, W by slot, then E^-1 and e = E^-1 bp.
+  // Points: E, bp, W by slot (shared), then per system E^-1 and e = E^-1 bp.
   ParallelFor(static_cast<int>(points_.size()), threads, 64, [&](int p) {
     Eigen::Matrix3d E = Eigen::Matrix3d::Zero();
     Eigen::Vector3d bp = Eigen::Vector3d::Zero();
@@ -535,87 +595,114 @@ bool Solver::Step(double radius, double* model_change) {
       }
     }
     for (int a = 0; a < 3; ++a) gradient_[blocks_[pb].offset + a] = -bp[a];
-    for (int a = 0; a < 3; ++a) E(a, a) += damping(E(a, a));
-    const Eigen::LLT<Eigen::Matrix3d> llt(E);
-    if (llt.info() != Eigen::Success) {
-      point_ok = false;
+    for (int k = 0; k < count; ++k) {
+      Damped& d = *systems[k];
+      Eigen::Matrix3d damped = E;
+      for (int a = 0; a < 3; ++a) damped(a, a) += std::clamp(E(a, a), lo, hi) / d.radius;
+      const Eigen::LLT<Eigen::Matrix3d> llt(damped);
+      if (llt.info() != Eigen::Success) {
+        point_ok[k] = false;
+        continue;
+      }
+      Eigen::Map<Eigen::Matrix3d> inverse(&d.e_inverse[9 * p]);
+      inverse = llt.solve(Eigen::Matrix3d::Identity());
+      Eigen::Map<Eigen::Vector3d> e(&d.e[3 * p]);
+      e = inverse * bp;
+    }
+  });
+
+  // Reduced rows, each (system, row) owned by one thread.
+  ParallelFor(count * num_reduced_, threads, 16, [&](int i) {
+    const int k = i / num_reduced_;
+    if (point_ok[k]) AssembleRow(*systems[k], i % num_reduced_, k == 0);
+  });
+  for (int k = 0; k < count; ++k) {
+    systems[k]->solved = point_ok[k];
+    if (point_ok[k]) HoldActiveBounds(*systems[k]);
+  }
+
+  // The factorisations, the second beside the first (each CHOLMOD call is
+  // serial on ATLAS; two systems have their own CHOLMOD workspaces).
+  const auto t = Clock::now();
+  if (second) {
+    std::thread beside([this, second] { Factorize(*second); });
+    Factorize(*first);
+    beside.join();
+  } else {
+    Factorize(*first);
+  }
+  summary_.factorize_seconds += Since(t);
+  for (int k = 0; k < count; ++k) Finish(*systems[k]);
+}
+
+// Row `row` of d's damped reduced system: A + D - W^T E^-1 W, and bc - W^T e.
+void Solver::AssembleRow(Damped& d, int row, bool write_gradient) {
+  const int tr = blocks_[reduced_[row]].tangent;
+  const int off = reduced_offset(row);
+  for (int a = 0; a < tr; ++a) std::fill(d.values + colptr_[off + a], d.values + colptr_[off + a + 1], 0.0);
+  double rhs[kMaxTangent] = {};
+  const int rb = reduced_[row];
+  // S(row, col) += sign * X^T Y (X: n x tr, Y: n x tc, row-major).
+  auto add = [&](int pos, const double* X, const double* Y, int tc, int n, double sign) {
+    if (tr == 6 && tc == 6 && n == 3) {  // pose x pose through a point: most of the work
+      using Block36 = Eigen::Matrix<double, 3, 6, Eigen::RowMajor>;
+      const Eigen::Matrix<double, 6, 6, Eigen::RowMajor> block =
+          sign * (Eigen::Map<const Block36>(X).transpose() * Eigen::Map<const Block36>(Y));
+      for (int a = 0; a < 6; ++a) {
+        double* out = d.values + colptr_[off + a] + pos;
+        for (int b = 0; b < 6; ++b) out[b] += block(a, b);
+      }
       return;
     }
-    Eigen::Map<Eigen::Matrix3d> inverse(&e_inverse_[9 * p]);
-    inverse = llt.solve(Eigen::Matrix3d::Identity());
-    Eigen::Map<Eigen::Vector3d> e(&e_[3 * p]);
-    e = inverse * bp;
-  });
-  if (!point_ok) return false;
-
-  // Reduced rows, each owned by one thread: A + D - W^T E^-1 W and bc - W^T e.
-  ParallelFor(num_reduced_, threads, 16, [&](int row) {
-    const int tr = blocks_[reduced_[row]].tangent;
-    const int off = reduced_offset(row);
-    for (int a = 0; a < tr; ++a)
-      std::fill(values_ + colptr_[off + a], values_ + colptr_[off + a + 1], 0.0);
-    double rhs[kMaxTangent] = {};
-    const int rb = reduced_[row];
-    // S(row, col) += sign * X^T Y (X: n x tr, Y: n x tc, row-major).
-    auto add = [&](int pos, const double* X, const double* Y, int tc, int n, double sign) {
-      if (tr == 6 && tc == 6 && n == 3) {  // pose x pose through a point: most of the work
-        using Block36 = Eigen::Matrix<double, 3, 6, Eigen::RowMajor>;
-        const Eigen::Matrix<double, 6, 6, Eigen::RowMajor> block =
-            sign * (Eigen::Map<const Block36>(X).transpose() * Eigen::Map<const Block36>(Y));
-        for (int a = 0; a < 6; ++a) {
-          double* out = values_ + colptr_[off + a] + pos;
-          for (int b = 0; b < 6; ++b) out[b] += block(a, b);
-        }
-        return;
-      }
-      for (int a = 0; a < tr; ++a) {
-        double* out = values_ + colptr_[off + a] + pos;
-        for (int i = 0; i < n; ++i) {
-          const double x = sign * X[i * tr + a];
-          const double* y = Y + i * tc;
-          for (int b = 0; b < tc; ++b) out[b] += x * y[b];
-        }
-      }
-    };
-    for (int k : row_residuals_[row]) {
-      const Residual& r = residuals_[k];
-      const size_t jr = std::find(r.blocks.begin(), r.blocks.end(), rb) - r.blocks.begin();
-      const double* Jr = &jacobians_[r.jacobian[jr]];
-      const double* res = &residual_values_[r.values];
-      for (int i = 0; i < r.size; ++i)
-        for (int a = 0; a < tr; ++a) rhs[a] -= Jr[i * tr + a] * res[i];
-      for (size_t j = 0; j < r.blocks.size(); ++j) {
-        const int col = blocks_[r.blocks[j]].reduced;
-        if (col < row) continue;
-        add(ColumnPosition(row, col), Jr, &jacobians_[r.jacobian[j]], blocks_[r.blocks[j]].tangent, r.size, 1.0);
-      }
-    }
     for (int a = 0; a < tr; ++a) {
-      gradient_[off + a] = -rhs[a];
-      double& d = S(row, a, 0, a);  // the diagonal block is the row's first
-      d += damping(d);
+      double* out = d.values + colptr_[off + a] + pos;
+      for (int i = 0; i < n; ++i) {
+        const double x = sign * X[i * tr + a];
+        const double* y = Y + i * tc;
+        for (int b = 0; b < tc; ++b) out[b] += x * y[b];
+      }
     }
-    double H[3 * kMaxTangent];  // E^-1 W_row (3 x tr)
-    for (const auto& [p, slot] : row_points_[row]) {
-      const auto& slots = point_slot_offset_[p];
-      const auto& cams = point_cams_[p];
-      const double* Wr = &w_[slots[slot]];
-      const double* inverse = &e_inverse_[9 * p];  // symmetric
-      for (int k = 0; k < 3; ++k)
-        for (int a = 0; a < tr; ++a)
-          H[k * tr + a] = inverse[3 * k] * Wr[a] + inverse[3 * k + 1] * Wr[tr + a] + inverse[3 * k + 2] * Wr[2 * tr + a];
-      const double* e = &e_[3 * p];
-      for (int a = 0; a < tr; ++a) rhs[a] -= Wr[a] * e[0] + Wr[tr + a] * e[1] + Wr[2 * tr + a] * e[2];
-      for (size_t s = slot; s < slots.size(); ++s)
-        add(ColumnPosition(row, cams[s]), H, &w_[slots[s]], blocks_[reduced_[cams[s]]].tangent, 3, -1.0);
+  };
+  for (int k : row_residuals_[row]) {
+    const Residual& r = residuals_[k];
+    const size_t jr = std::find(r.blocks.begin(), r.blocks.end(), rb) - r.blocks.begin();
+    const double* Jr = &jacobians_[r.jacobian[jr]];
+    const double* res = &residual_values_[r.values];
+    for (int i = 0; i < r.size; ++i)
+      for (int a = 0; a < tr; ++a) rhs[a] -= Jr[i * tr + a] * res[i];
+    for (size_t j = 0; j < r.blocks.size(); ++j) {
+      const int col = blocks_[r.blocks[j]].reduced;
+      if (col < row) continue;
+      add(ColumnPosition(row, col), Jr, &jacobians_[r.jacobian[j]], blocks_[r.blocks[j]].tangent, r.size, 1.0);
     }
-    for (int a = 0; a < tr; ++a) rhs_[off + a] = rhs[a];
-  });
+  }
+  for (int a = 0; a < tr; ++a) {
+    if (write_gradient) gradient_[off + a] = -rhs[a];
+    double& diagonal = S(d, row, a, 0, a);  // the diagonal block is the row's first
+    diagonal += std::clamp(diagonal, options_.min_lm_diagonal, options_.max_lm_diagonal) / d.radius;
+  }
+  double H[3 * kMaxTangent];  // E^-1 W_row (3 x tr)
+  for (const auto& [p, slot] : row_points_[row]) {
+    const auto& slots = point_slot_offset_[p];
+    const auto& cams = point_cams_[p];
+    const double* Wr = &w_[slots[slot]];
+    const double* inverse = &d.e_inverse[9 * p];  // symmetric
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < tr; ++a)
+        H[k * tr + a] = inverse[3 * k] * Wr[a] + inverse[3 * k + 1] * Wr[tr + a] + inverse[3 * k + 2] * Wr[2 * tr + a];
+    const double* e = &d.e[3 * p];
+    for (int a = 0; a < tr; ++a) rhs[a] -= Wr[a] * e[0] + Wr[tr + a] * e[1] + Wr[2 * tr + a] * e[2];
+    for (size_t s = slot; s < slots.size(); ++s)
+      add(ColumnPosition(row, cams[s]), H, &w_[slots[s]], blocks_[reduced_[cams[s]]].tangent, 3, -1.0);
+  }
+  for (int a = 0; a < tr; ++a) d.rhs[off + a] = rhs[a];
+}
 
-  // Coordinates at a bound that the descent direction pushes out are held
-  // for this step: their rows and columns are removed from S (a unit
-  // diagonal, a zero right-hand side), which is the Schur complement of the
-  // problem without them.
+// Coordinates at a bound that the descent direction pushes out are held for
+// this step: their rows and columns are removed from S (a unit diagonal, a
+// zero right-hand side), which is the Schur complement of the problem
+// without them.
+void Solver::HoldActiveBounds(Damped& d) {
   for (int row = 0; row < num_reduced_; ++row) {
     const Block& b = blocks_[reduced_[row]];
     if (b.lower.empty()) continue;
@@ -623,41 +710,52 @@ bool Solver::Step(double radius, double* model_change) {
     for (int a = 0; a < b.tangent; ++a) {
       const double g = gradient_[off + a];
       if (!((b.values[a] <= b.lower[a] && g > 0) || (b.values[a] >= b.upper[a] && g < 0))) continue;
-      std::fill(values_ + colptr_[off + a], values_ + colptr_[off + a + 1], 0.0);
-      for (int a2 = 0; a2 < b.tangent; ++a2) S(row, a2, 0, a) = 0;
-      S(row, a, 0, a) = 1;
-      rhs_[off + a] = 0;
+      std::fill(d.values + colptr_[off + a], d.values + colptr_[off + a + 1], 0.0);
+      for (int a2 = 0; a2 < b.tangent; ++a2) S(d, row, a2, 0, a) = 0;
+      S(d, row, a, 0, a) = 1;
+      d.rhs[off + a] = 0;
       if (auto it = bounded_columns_.find(row); it != bounded_columns_.end())
         for (const auto& [above, pos] : it->second)
-          for (int a2 = 0; a2 < blocks_[reduced_[above]].tangent; ++a2) S(above, a2, pos, a) = 0;
+          for (int a2 = 0; a2 < blocks_[reduced_[above]].tangent; ++a2) S(d, above, a2, pos, a) = 0;
     }
   }
+}
 
-  // Reduced solve.
-  const auto t = Clock::now();
-  const int n = static_cast<int>(matrix_ ? matrix_->nrow : 0);
-  if (n > 0) {
-    cholmod_l_factorize(matrix_, factor_, &common_);
-    if (common_.status < CHOLMOD_OK) failed_ = "CHOLMOD failed to factorise the reduced system (status " +
-                                               std::to_string(common_.status) + ")";
-    if (common_.status == CHOLMOD_NOT_POSDEF || common_.status < CHOLMOD_OK) {
-      summary_.factorize_seconds += Since(t);
-      return false;
-    }
-    cholmod_dense* b = cholmod_l_allocate_dense(n, 1, n, CHOLMOD_REAL, &common_);
-    std::copy(rhs_.begin(), rhs_.begin() + n, static_cast<double*>(b->x));
-    cholmod_dense* x = cholmod_l_solve(CHOLMOD_A, factor_, b, &common_);
-    cholmod_l_free_dense(&b, &common_);
-    if (!x) {
-      failed_ = "CHOLMOD failed to solve the reduced system (status " + std::to_string(common_.status) + ")";
-      summary_.factorize_seconds += Since(t);
-      return false;
-    }
-    std::copy(static_cast<double*>(x->x), static_cast<double*>(x->x) + n, step_.begin());
-    cholmod_l_free_dense(&x, &common_);
+// The reduced step of d by CHOLMOD; d.solved false when d is not positive
+// definite, d.failed on an error. Touches only d (runs beside another system).
+void Solver::Factorize(Damped& d) {
+  const int n = static_cast<int>(d.matrix ? d.matrix->nrow : 0);
+  if (!d.solved || n == 0) return;
+  cholmod_l_factorize(d.matrix, d.factor, &d.common);
+  if (d.common.status < CHOLMOD_OK)
+    d.failed = "CHOLMOD failed to factorise the reduced system (status " + std::to_string(d.common.status) + ")";
+  if (d.common.status == CHOLMOD_NOT_POSDEF || d.common.status < CHOLMOD_OK) {
+    d.solved = false;
+    return;
   }
-  summary_.factorize_seconds += Since(t);
+  cholmod_dense* b = cholmod_l_allocate_dense(n, 1, n, CHOLMOD_REAL, &d.common);
+  if (!b) {
+    d.failed = "CHOLMOD could not allocate the right-hand side (status " + std::to_string(d.common.status) + ")";
+    d.solved = false;
+    return;
+  }
+  std::copy(d.rhs.begin(), d.rhs.begin() + n, static_cast<double*>(b->x));
+  cholmod_dense* x = cholmod_l_solve(CHOLMOD_A, d.factor, b, &d.common);
+  cholmod_l_free_dense(&b, &d.common);
+  if (!x) {
+    d.failed = "CHOLMOD failed to solve the reduced system (status " + std::to_string(d.common.status) + ")";
+    d.solved = false;
+    return;
+  }
+  std::copy(static_cast<double*>(x->x), static_cast<double*>(x->x) + n, d.step.begin());
+  cholmod_l_free_dense(&x, &d.common);
+}
 
+// After the reduced solve: the points' steps, the step shortened at a bound,
+// and the decrease it predicts.
+void Solver::Finish(Damped& d) {
+  if (!d.solved) return;
+  const int threads = options_.num_threads;
   // Points: dp = e - E^-1 W dc.
   ParallelFor(static_cast<int>(points_.size()), threads, 256, [&](int p) {
     Eigen::Vector3d wd = Eigen::Vector3d::Zero();
@@ -666,27 +764,29 @@ bool Solver::Step(double radius, double* model_change) {
     for (size_t s = 0; s < slots.size(); ++s) {
       const int tc = blocks_[reduced_[cams[s]]].tangent;
       wd.noalias() += ConstMapRM(&w_[slots[s]], 3, tc) *
-                      Eigen::Map<const Eigen::VectorXd>(&step_[reduced_offset(cams[s])], tc);
+                      Eigen::Map<const Eigen::VectorXd>(&d.step[reduced_offset(cams[s])], tc);
     }
     const Eigen::Vector3d dp =
-        Eigen::Map<const Eigen::Vector3d>(&e_[3 * p]) - Eigen::Map<const Eigen::Matrix3d>(&e_inverse_[9 * p]) * wd;
-    Eigen::Map<Eigen::Vector3d> out(&step_[blocks_[points_[p]].offset]);
+        Eigen::Map<const Eigen::Vector3d>(&d.e[3 * p]) - Eigen::Map<const Eigen::Matrix3d>(&d.e_inverse[9 * p]) * wd;
+    Eigen::Map<Eigen::Vector3d> out(&d.step[blocks_[points_[p]].offset]);
     out = dp;
   });
 
   // A step that would cross a bound is shortened to reach it (the
-  // coordinate is then held by the test above at the next step).
+  // coordinate is then held by HoldActiveBounds at the next step).
   double fraction = 1;
   for (int row = 0; row < num_reduced_; ++row) {
     const Block& b = blocks_[reduced_[row]];
     for (size_t a = 0; a < b.lower.size(); ++a) {
-      const double d = scale_[b.offset + a] * step_[b.offset + a];
-      if (b.values[a] + d > b.upper[a] && d > 0) fraction = std::min(fraction, std::max(0.0, b.upper[a] - b.values[a]) / d);
-      if (b.values[a] + d < b.lower[a] && d < 0) fraction = std::min(fraction, std::max(0.0, b.lower[a] - b.values[a]) / d);
+      const double delta = scale_[b.offset + a] * d.step[b.offset + a];
+      if (b.values[a] + delta > b.upper[a] && delta > 0)
+        fraction = std::min(fraction, std::max(0.0, b.upper[a] - b.values[a]) / delta);
+      if (b.values[a] + delta < b.lower[a] && delta < 0)
+        fraction = std::min(fraction, std::max(0.0, b.lower[a] - b.values[a]) / delta);
     }
   }
   if (fraction < 1)
-    for (double& d : step_) d *= fraction;
+    for (double& x : d.step) x *= fraction;
 
   // Predicted decrease: -(r^T J d + 0.5 |J d|^2), summed in residual order.
   ParallelFor(static_cast<int>(residuals_.size()), threads, 256, [&](int k) {
@@ -698,7 +798,7 @@ bool Solver::Step(double radius, double* model_change) {
         const Block& b = blocks_[r.blocks[j]];
         if (b.constant) continue;
         const double* J = &jacobians_[r.jacobian[j]] + i * b.tangent;
-        for (int a = 0; a < b.tangent; ++a) jd += J[a] * step_[b.offset + a];
+        for (int a = 0; a < b.tangent; ++a) jd += J[a] * d.step[b.offset + a];
       }
       model += residual_values_[r.values + i] * jd + 0.5 * jd * jd;
     }
@@ -706,8 +806,8 @@ bool Solver::Step(double radius, double* model_change) {
   });
   double change = 0;
   for (double m : model_) change -= m;
-  *model_change = change;
-  return std::isfinite(change);
+  d.model_change = change;
+  if (!std::isfinite(change)) d.solved = false;
 }
 
 void Solver::Save() {
@@ -726,7 +826,7 @@ void Solver::Restore() {
 }
 
 // x <- Plus(x, scale .* step), projected onto the bounds (from the saved x).
-void Solver::Candidate() {
+void Solver::Candidate(const std::vector<double>& step) {
   std::vector<int> free;
   std::vector<size_t> at;
   size_t a = 0;
@@ -740,7 +840,7 @@ void Solver::Candidate() {
     Block& b = blocks_[free[f]];
     const double* x = &saved_[at[f]];
     double delta[kMaxTangent];
-    for (int k = 0; k < b.tangent; ++k) delta[k] = scale_[b.offset + k] * step_[b.offset + k];
+    for (int k = 0; k < b.tangent; ++k) delta[k] = scale_[b.offset + k] * step[b.offset + k];
     if (b.manifold)
       b.manifold->Plus(x, delta, b.values);
     else
@@ -749,9 +849,9 @@ void Solver::Candidate() {
   });
 }
 
-double Solver::StepNorm() const {
+double Solver::StepNorm(const std::vector<double>& step) const {
   double sq = 0;
-  for (int i = 0; i < num_tangent_; ++i) sq += (scale_[i] * step_[i]) * (scale_[i] * step_[i]);
+  for (int i = 0; i < num_tangent_; ++i) sq += (scale_[i] * step[i]) * (scale_[i] * step[i]);
   return std::sqrt(sq);
 }
 
@@ -765,108 +865,129 @@ double Solver::StateNorm() const {
 
 SchurLMSummary Solver::Run(const std::vector<double*>& eliminate) {
   const auto start = Clock::now();
-  auto finish = [&](const std::string& message) {
-    summary_.message = message;
-    summary_.total_seconds = Since(start);
-    return summary_;
-  };
-  if (const std::string why = options_.CheckMessage(); !why.empty()) return finish("invalid options: " + why);
-  if (const std::string why = Structure(eliminate); !why.empty()) return finish(why);
+  double cost = 0;
+  std::string message = Prepare(eliminate, &cost);
+  if (message.empty()) message = Iterate(cost);
+  summary_.message = message;
+  summary_.total_seconds = Since(start);
+  return summary_;
+}
+
+// The problem's structure, the reduced pattern and the first linearisation;
+// "" or why the problem cannot be solved here.
+std::string Solver::Prepare(const std::vector<double*>& eliminate, double* cost) {
+  if (const std::string why = options_.CheckMessage(); !why.empty()) return "invalid options: " + why;
+  if (const std::string why = Structure(eliminate); !why.empty()) return why;
   for (const auto& b : blocks_)
     if (b.tangent > kMaxTangent)
-      return finish("a parameter block has more than " + std::to_string(kMaxTangent) + " tangent coordinates");
-  if (num_tangent_ == 0) return finish("no free parameter");
+      return "a parameter block has more than " + std::to_string(kMaxTangent) + " tangent coordinates";
+  if (num_tangent_ == 0) return "no free parameter";
   Pattern();
-  if (num_reduced_ > 0 && !factor_) return finish("CHOLMOD could not analyse the reduced system");
-
-  auto t = Clock::now();
-  double cost = 0;
-  if (!Cost(&cost) || !Linearize(true)) return finish("the residuals cannot be evaluated at the start");
+  if (num_reduced_ > 0 && (!damped_[0].factor || (speculate_ && !damped_[1].factor)))
+    return "CHOLMOD could not analyse the reduced system";
+  const auto t = Clock::now();
+  if (!Cost(cost) || !Linearize(true)) return "the residuals cannot be evaluated at the start";
   summary_.evaluate_seconds += Since(t);
-  summary_.initial_cost = summary_.final_cost = cost;
+  summary_.initial_cost = summary_.final_cost = *cost;
   summary_.usable = true;
+  return "";
+}
+
+// The trust-region iterations from a linearised point of cost `cost`; why they stopped.
+std::string Solver::Iterate(double cost) {
   double radius = options_.initial_trust_region_radius, decrease = 2;
-  std::string message = "maximum number of iterations reached";
+  int current = 0;           // damped_[current]: the system of this step
+  bool spare_ready = false;  // damped_[current] already holds the step at `radius` (speculated)
   while (summary_.iterations < options_.max_iterations) {
     if (options_.cancelled && options_.cancelled()) {
       summary_.cancelled = true;
-      message = "cancelled";
-      break;
+      return "cancelled";
     }
     ++summary_.iterations;
-    t = Clock::now();
-    double model_change = 0;
-    const bool solved = Step(radius, &model_change);
-    summary_.step_seconds += Since(t);
-    if (!failed_.empty()) {
-      summary_.usable = false;
-      message = failed_;
-      break;
+    Damped& d = damped_[current];
+    Damped* spare = speculate_ ? &damped_[1 - current] : nullptr;
+    bool spare_computed = false;
+    if (!spare_ready) {
+      const auto t = Clock::now();
+      d.radius = radius;
+      if (spare) spare->radius = radius / decrease;  // the radius after a rejection, bit for bit
+      Steps(&d, spare);
+      spare_computed = spare != nullptr;
+      summary_.step_seconds += Since(t);
     }
-    if (solved) {  // the point and row passes filled the gradient
+    spare_ready = false;
+    if (!d.failed.empty()) {
+      summary_.usable = false;
+      return d.failed;
+    }
+    if (d.solved) {  // the point and row passes filled the gradient
       double g = 0;
       for (int i = 0; i < num_tangent_; ++i) g = std::max(g, std::abs(gradient_[i] / scale_[i]));
       if (g <= options_.gradient_tolerance) {
         summary_.converged = true;
         --summary_.iterations;
-        message = "gradient tolerance reached";
-        break;
+        return "gradient tolerance reached";
       }
     }
-    bool accepted = false;
-    double new_cost = cost;
-    if (solved && model_change > 0) {
-      const double step_norm = StepNorm();
-      if (step_norm <= options_.parameter_tolerance * (StateNorm() + options_.parameter_tolerance)) {
-        summary_.converged = true;
-        message = "parameter tolerance reached";
-        break;
-      }
-      Save();
-      Candidate();
-      t = Clock::now();
-      const bool valid = Cost(&new_cost);
-      if (valid) {
-        if (std::abs(cost - new_cost) <= options_.function_tolerance * cost) {
-          Restore();
-          summary_.converged = true;
-          message = "function tolerance reached";
-          break;
-        }
-        const double rho = (cost - new_cost) / model_change;
-        accepted = rho > options_.min_relative_decrease;
-        if (accepted) {
-          radius = std::min(options_.max_trust_region_radius,
-                            radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
-          decrease = 2;
-        }
-      }
-      if (!accepted) Restore();
-    }
+    double new_cost = cost, rho = 0;
+    std::string stop;
+    if (d.solved && d.model_change > 0 && !TryStep(d, cost, &new_cost, &rho, &stop)) return stop;
+    const bool accepted = d.solved && d.model_change > 0 && rho > options_.min_relative_decrease;
     if (options_.verbose)
       std::printf("schur_lm %3d: cost %.6e -> %.6e model %.3e radius %.2e %s\n", summary_.iterations, cost,
-                  new_cost, model_change, radius, accepted ? "accepted" : "rejected");
+                  new_cost, d.model_change, radius, accepted ? "accepted" : "rejected");
     if (accepted) {
+      radius = std::min(options_.max_trust_region_radius,
+                        radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
+      decrease = 2;
       ++summary_.successful_steps;
       cost = new_cost;
       summary_.final_cost = cost;
-      t = Clock::now();
-      if (!Linearize(false)) {  // cannot happen where the cost could be evaluated; stop at the last good point
-        message = "the Jacobians cannot be evaluated at an accepted step";
-        break;
-      }
+      const auto t = Clock::now();
+      // Cannot fail where the cost could be evaluated; if it does, stop at the last good point.
+      if (!Linearize(false)) return "the Jacobians cannot be evaluated at an accepted step";
       summary_.evaluate_seconds += Since(t);
-    } else {
-      radius /= decrease;
-      decrease *= 2;
-      if (radius < options_.min_trust_region_radius) {
-        summary_.converged = true;
-        message = "minimum trust region radius reached";
-        break;
-      }
+      continue;
+    }
+    radius /= decrease;
+    decrease *= 2;
+    if (spare_computed) {  // the next step is the spare's
+      current = 1 - current;
+      spare_ready = true;
+    }
+    if (radius < options_.min_trust_region_radius) {
+      summary_.converged = true;
+      return "minimum trust region radius reached";
     }
   }
-  return finish(message);
+  return "maximum number of iterations reached";
+}
+
+// Moves to d's step and evaluates the cost there (*new_cost, and *rho the
+// ratio of actual to predicted decrease; the parameters are restored when
+// the step will be rejected); false when a tolerance ends the solve (*stop
+// says which, the parameters at the last accepted point).
+bool Solver::TryStep(const Damped& d, double cost, double* new_cost, double* rho, std::string* stop) {
+  if (StepNorm(d.step) <= options_.parameter_tolerance * (StateNorm() + options_.parameter_tolerance)) {
+    summary_.converged = true;
+    *stop = "parameter tolerance reached";
+    return false;
+  }
+  Save();
+  Candidate(d.step);
+  const auto t = Clock::now();
+  const bool valid = Cost(new_cost);
+  summary_.evaluate_seconds += Since(t);
+  if (valid && std::abs(cost - *new_cost) <= options_.function_tolerance * cost) {
+    Restore();
+    summary_.converged = true;
+    *stop = "function tolerance reached";
+    return false;
+  }
+  *rho = valid ? (cost - *new_cost) / d.model_change : 0;
+  if (!valid) *new_cost = cost;
+  if (!(*rho > options_.min_relative_decrease)) Restore();
+  return true;
 }
 
 }  // namespace

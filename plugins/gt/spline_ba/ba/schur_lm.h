@@ -20,8 +20,13 @@
 // Differences: a step is projected onto the parameter bounds (no line
 // search), and the gradient test uses the gradient's max norm.
 //
-// Every sum is taken in an order that does not depend on the threads, so the
-// result is the same bits at any thread count (test SchurLM.SameBitsAtAnyThreadCount).
+// With two threads or more, the step at the next smaller trust region is
+// computed beside the current one (its reduced system assembled with it, its
+// factorisation on the second thread): a rejected step then costs no
+// factorisation of its own, the one serial part left (CHOLMOD on a
+// single-threaded BLAS). Every sum is taken in an order that does not depend
+// on the threads, so the result is the same bits at any thread count (test
+// SchurLM.SameBitsAtAnyThreadCount).
 #ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SCHUR_LM_H_
 #define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SCHUR_LM_H_
 
