@@ -17,8 +17,10 @@
 // correction and the stopping rules are those of Ceres' LEVENBERG_MARQUARDT
 // with its default options, so both minimise the same cost the same way;
 // their results agree to the problem's conditioning, not bit for bit.
-// Differences: a step is projected onto the parameter bounds (no line
-// search), and the gradient test uses the gradient's max norm.
+// Differences: at a parameter bound a coordinate the descent pushes out is
+// held for the step and a step crossing a bound is shortened to it (Ceres
+// runs a projected line search instead), and the gradient test uses the
+// gradient's max norm.
 //
 // With two threads or more, the step at the next smaller trust region is
 // computed beside the current one (its reduced system assembled with it, its
