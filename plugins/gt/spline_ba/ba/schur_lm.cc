@@ -85,6 +85,7 @@ struct Block {
   int reduced = -1;        // index among the reduced blocks
   int offset = -1;         // first coordinate in the tangent vector (reduced blocks first, then points)
   int plus_jacobian = -1;  // offset of its ambient x tangent Plus Jacobian (manifolds only)
+  int saved = -1;          // offset of its values in Solver::saved_ (free blocks only)
   std::vector<double> lower, upper;  // empty: unbounded
 };
 
@@ -168,7 +169,7 @@ class Solver {
   ceres::Problem& problem_;
   std::vector<Block> blocks_;
   std::vector<Residual> residuals_;
-  std::vector<int> points_, reduced_;  // block indices
+  std::vector<int> points_, reduced_, free_;  // block indices: eliminated, reduced, not constant
   int num_reduced_ = 0, num_tangent_ = 0;
 
   // By point: its residuals, its reduced blocks (ascending) and their slots'
@@ -218,12 +219,10 @@ std::string Solver::Structure(const std::vector<double*>& eliminate) {
         b.lower.push_back(problem_.GetParameterLowerBound(p, i));
         b.upper.push_back(problem_.GetParameterUpperBound(p, i));
       }
+    if (bounded && b.manifold && !b.constant) return "bounds on a block with a manifold are not supported";
     if (to_eliminate.count(p) && !b.constant) {
       if (b.size != 3 || b.tangent != 3 || b.manifold || bounded)
         return "an eliminated block must be 3 free coordinates without manifold or bounds";
-    }
-    if (bounded && b.manifold && !b.constant) return "bounds on a block with a manifold are not supported";
-    if (to_eliminate.count(p) && !b.constant) {
       b.point = static_cast<int>(points_.size());
       points_.push_back(static_cast<int>(blocks_.size()));
     }
@@ -273,7 +272,7 @@ void Solver::Order(const std::vector<int>& uses) {
     if (!blocks_[b].constant && blocks_[b].point < 0) reduced_.push_back(static_cast<int>(b));
   std::stable_sort(reduced_.begin(), reduced_.end(), [&](int a, int b) { return uses[a] < uses[b]; });
   num_reduced_ = static_cast<int>(reduced_.size());
-  int offset = 0, plus = 0;
+  int offset = 0, plus = 0, saved = 0;
   for (int r = 0; r < num_reduced_; ++r) {
     blocks_[reduced_[r]].reduced = r;
     blocks_[reduced_[r]].offset = offset;
@@ -284,12 +283,19 @@ void Solver::Order(const std::vector<int>& uses) {
     offset += 3;
   }
   num_tangent_ = offset;
-  for (auto& b : blocks_)
-    if (!b.constant && b.manifold) {
+  for (size_t i = 0; i < blocks_.size(); ++i) {
+    Block& b = blocks_[i];
+    if (b.constant) continue;
+    free_.push_back(static_cast<int>(i));
+    b.saved = saved;
+    saved += b.size;
+    if (b.manifold) {
       b.plus_jacobian = plus;
       plus += b.size * b.tangent;
     }
+  }
   plus_jacobians_.resize(plus);
+  saved_.resize(saved);
 }
 
 // Jacobian storage and the points' slots.
@@ -811,34 +817,18 @@ void Solver::Finish(Damped& d) {
 }
 
 void Solver::Save() {
-  saved_.clear();
-  for (const auto& b : blocks_)
-    if (!b.constant) saved_.insert(saved_.end(), b.values, b.values + b.size);
+  for (int i : free_) std::copy_n(blocks_[i].values, blocks_[i].size, &saved_[blocks_[i].saved]);
 }
 
 void Solver::Restore() {
-  size_t at = 0;
-  for (auto& b : blocks_)
-    if (!b.constant) {
-      std::copy(saved_.begin() + at, saved_.begin() + at + b.size, b.values);
-      at += b.size;
-    }
+  for (int i : free_) std::copy_n(&saved_[blocks_[i].saved], blocks_[i].size, blocks_[i].values);
 }
 
 // x <- Plus(x, scale .* step), projected onto the bounds (from the saved x).
 void Solver::Candidate(const std::vector<double>& step) {
-  std::vector<int> free;
-  std::vector<size_t> at;
-  size_t a = 0;
-  for (size_t i = 0; i < blocks_.size(); ++i)
-    if (!blocks_[i].constant) {
-      free.push_back(static_cast<int>(i));
-      at.push_back(a);
-      a += blocks_[i].size;
-    }
-  ParallelFor(static_cast<int>(free.size()), options_.num_threads, 256, [&](int f) {
-    Block& b = blocks_[free[f]];
-    const double* x = &saved_[at[f]];
+  ParallelFor(static_cast<int>(free_.size()), options_.num_threads, 256, [&](int f) {
+    Block& b = blocks_[free_[f]];
+    const double* x = &saved_[b.saved];
     double delta[kMaxTangent];
     for (int k = 0; k < b.tangent; ++k) delta[k] = scale_[b.offset + k] * step[b.offset + k];
     if (b.manifold)
@@ -857,9 +847,8 @@ double Solver::StepNorm(const std::vector<double>& step) const {
 
 double Solver::StateNorm() const {
   double sq = 0;
-  for (const auto& b : blocks_)
-    if (!b.constant)
-      for (int k = 0; k < b.size; ++k) sq += b.values[k] * b.values[k];
+  for (int i : free_)
+    for (int k = 0; k < blocks_[i].size; ++k) sq += blocks_[i].values[k] * blocks_[i].values[k];
   return std::sqrt(sq);
 }
 
@@ -931,8 +920,9 @@ std::string Solver::Iterate(double cost) {
     }
     double new_cost = cost, rho = 0;
     std::string stop;
-    if (d.solved && d.model_change > 0 && !TryStep(d, cost, &new_cost, &rho, &stop)) return stop;
-    const bool accepted = d.solved && d.model_change > 0 && rho > options_.min_relative_decrease;
+    const bool descends = d.solved && d.model_change > 0;
+    if (descends && !TryStep(d, cost, &new_cost, &rho, &stop)) return stop;
+    const bool accepted = descends && rho > options_.min_relative_decrease;
     if (options_.verbose)
       std::printf("schur_lm %3d: cost %.6e -> %.6e model %.3e radius %.2e %s\n", summary_.iterations, cost,
                   new_cost, d.model_change, radius, accepted ? "accepted" : "rejected");

@@ -17,29 +17,17 @@ namespace locforge::sfm {
 namespace {
 
 const SyntheticScene& Scene() {
-  static const SyntheticScene scene = [] {
-    SyntheticOptions o;
-    o.clock_offset_sigma_s = 0.003;
-    return MakeSyntheticScene(o);
-  }();
+  static const SyntheticScene scene = MakeSyntheticScene(TestSceneOptions());
   return scene;
 }
 
-// The synthetic scene's settings of spline_ba_test.cc, with every
-// calibration block free and clock offsets estimated (bounded blocks).
+// The synthetic scene's settings, with every calibration block free and
+// clock offsets estimated (bounded blocks).
 SplineBAOptions Options(const std::string& solver, int threads) {
-  SplineBAOptions options;
+  SplineBAOptions options = SyntheticSceneBAOptions();
   options.num_threads = threads;
-  options.knot_spacing_s = 0.1;
-  options.prior_sigma_rotation_rad = 0.002;
-  options.prior_sigma_translation_m = 0.01;
-  options.trajectory_prior_sigma_rotation_rad = 0.02;
-  options.trajectory_prior_sigma_translation_m = 0.05;
   options.align_trajectories = true;
-  options.alignment_sigma_rotation_rad = 0.05;
   options.estimate_time_offsets = true;
-  options.cauchy_scale_px = 1.0;
-  options.max_iterations = 100;
   options.linear_solver = solver;
   return options;
 }

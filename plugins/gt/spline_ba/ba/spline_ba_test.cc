@@ -37,35 +37,14 @@ Outcome Solve(const char* label, const SyntheticScene& scene, const SplineBAOpti
   return run;
 }
 
-// Clock offsets of 3 ms sigma ("a few ms"); with 5 ms the extrinsic
-// rotations absorb part of the offsets (README: ~0.1 deg).
-SyntheticOptions SceneOptions() {
-  SyntheticOptions o;
-  o.clock_offset_sigma_s = 0.003;
-  return o;
-}
-
 const SyntheticScene& Scene() {
-  static const SyntheticScene scene = MakeSyntheticScene(SceneOptions());
+  static const SyntheticScene scene = MakeSyntheticScene(TestSceneOptions());
   return scene;
 }
 
-// The settings these synthetic scenes are sized for: denser knots (their
-// trajectories turn faster than a wheeled platform does), looser image and
-// LiDAR priors than the stage's defaults, no sequence alignment unless a test
-// asks for it.
 SplineBAOptions Options() {
-  SplineBAOptions options;
+  SplineBAOptions options = SyntheticSceneBAOptions();
   options.num_threads = 2;
-  options.knot_spacing_s = 0.1;
-  options.prior_sigma_rotation_rad = 0.002;
-  options.prior_sigma_translation_m = 0.01;
-  options.trajectory_prior_sigma_rotation_rad = 0.02;
-  options.trajectory_prior_sigma_translation_m = 0.05;
-  options.align_trajectories = false;
-  options.alignment_sigma_rotation_rad = 0.05;
-  options.cauchy_scale_px = 1.0;
-  options.max_iterations = 100;
   return options;
 }
 

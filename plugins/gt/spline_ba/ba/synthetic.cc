@@ -241,6 +241,26 @@ SyntheticScene MakeSyntheticScene(const SyntheticOptions& o) {
   return std::move(m.scene);
 }
 
+SyntheticOptions TestSceneOptions() {
+  SyntheticOptions o;
+  o.clock_offset_sigma_s = 0.003;
+  return o;
+}
+
+SplineBAOptions SyntheticSceneBAOptions() {
+  SplineBAOptions options;
+  options.knot_spacing_s = 0.1;
+  options.prior_sigma_rotation_rad = 0.002;
+  options.prior_sigma_translation_m = 0.01;
+  options.trajectory_prior_sigma_rotation_rad = 0.02;
+  options.trajectory_prior_sigma_translation_m = 0.05;
+  options.align_trajectories = false;
+  options.alignment_sigma_rotation_rad = 0.05;
+  options.cauchy_scale_px = 1.0;
+  options.max_iterations = 100;
+  return options;
+}
+
 SceneErrors CompareToTruth(const BAProblem& est, const BAProblem& truth) {
   SceneErrors e;
   double sp = 0, sr = 0;

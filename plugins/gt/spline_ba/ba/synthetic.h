@@ -67,6 +67,17 @@ struct SceneErrors {
 };
 SceneErrors CompareToTruth(const BAProblem& estimate, const BAProblem& truth);
 
+// The tests' scene: the defaults above with clock offsets of 3 ms sigma ("a
+// few ms"; with 5 ms the extrinsic rotations absorb part of the offsets,
+// README: ~0.1 deg).
+SyntheticOptions TestSceneOptions();
+
+// The bundle adjuster's settings these synthetic scenes are sized for:
+// denser knots (their trajectories turn faster than a wheeled platform
+// does), looser image and LiDAR priors than the stage's defaults, no
+// sequence alignment unless a test asks for it; 100 iterations at most.
+SplineBAOptions SyntheticSceneBAOptions();
+
 }  // namespace locforge::sfm
 
 #endif  // LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SYNTHETIC_H_
