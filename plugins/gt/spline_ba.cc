@@ -52,6 +52,12 @@ void OuterLoopOptions::Declare(ParamSchema<OuterLoopOptions>& s) {
   s.Add("sparse_library", &O::ba, &sfm::SplineBAOptions::sparse_library,
         "sparse Cholesky of sparse_schur: suite_sparse (CHOLMOD on the system BLAS) or eigen_sparse (no BLAS)")
       .Choices({"suite_sparse", "eigen_sparse"});
+  s.Add("parallel_schur_tile", &O::ba, &sfm::SplineBAOptions::parallel_schur_tile,
+        "parallel_schur: factorise the reduced system in tiles of this size on every thread (0: CHOLMOD on one thread)")
+      .Range(0, 4096);
+  s.Add("parallel_schur_tile_flop_ratio", &O::ba, &sfm::SplineBAOptions::parallel_schur_tile_flop_ratio,
+        "parallel_schur: tiles only where they cost at most this many times CHOLMOD's operations (sparser: CHOLMOD)")
+      .Range(0, 1e9);
   s.Add("sparse_schur_max_images", &O::ba, &sfm::SplineBAOptions::sparse_schur_max_images, "auto: the most images solved with sparse_schur").Min(0);
   s.Add("iterative_eta", &O::ba, &sfm::SplineBAOptions::iterative_eta, "iterative_schur: relative residual of the conjugate gradients").Range(1e-9, 0.999);
   s.Add("pose_tolerance_m", &O::pose_tolerance_m, "convergence: RMS camera-centre change of a round (m)").Min(0);

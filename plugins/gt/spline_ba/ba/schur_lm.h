@@ -54,6 +54,12 @@ struct SchurLMOptions {
   double min_lm_diagonal = 1e-6;
   double max_lm_diagonal = 1e32;
   int num_threads = 1;
+  // The reduced system's factorisation: > 0 TiledCholesky (tiled_cholesky.h)
+  // with tiles of this size, factorised on every thread, where it costs at
+  // most tile_flop_ratio times CHOLMOD's operations (a dense enough system);
+  // else, and with 0, CHOLMOD (on the machine's BLAS).
+  int factorization_tile = 128;
+  double tile_flop_ratio = 2;
   bool verbose = false;  // one line per step to stdout
   // Polled before every step: true stops the solve (summary.cancelled).
   std::function<bool()> cancelled;
@@ -70,10 +76,13 @@ struct SchurLMSummary {
   int successful_steps = 0;  // steps accepted
   double initial_cost = 0, final_cost = 0;  // 0.5 * sum of robustified squared residuals (Ceres' cost)
   std::string message;
-  // The reduced system: its columns and the nonzeros of its Cholesky factor
-  // (CHOLMOD's count after its fill-reducing ordering).
+  // The reduced system: its columns, how it was factorised ("CHOLMOD" or
+  // "tiles of N"), the values of its Cholesky factor (CHOLMOD's nonzeros
+  // after its fill-reducing ordering, or the tiles' entries) and the
+  // operations of one factorisation.
   long reduced_columns = 0;
-  double factor_nonzeros = 0;
+  std::string factorization;
+  double factor_nonzeros = 0, factor_flops = 0;
   // Wall seconds: residuals and Jacobians; the steps (the points' blocks,
   // the reduced system's assembly, its factorisation and solve, the back
   // substitution), of which the factorisation and solve alone.

@@ -45,6 +45,8 @@ std::string SplineBAOptions::CheckMessage() const {
     return "tolerances must be >= 0";
   if (num_threads < 1) return "num_threads must be >= 1";
   if (sparse_schur_max_images < 0) return "sparse_schur_max_images must be >= 0";
+  if (parallel_schur_tile < 0) return "parallel_schur_tile must be >= 0";
+  if (!(parallel_schur_tile_flop_ratio >= 0)) return "parallel_schur_tile_flop_ratio must be >= 0";
   if (!(iterative_eta > 0 && iterative_eta < 1)) return "iterative_eta must be in (0, 1)";
   if (!positive(max_time_offset_s) || max_time_offset_s >= knot_spacing_s)
     return "max_time_offset_s must be in (0, knot_spacing_s)";
@@ -669,6 +671,8 @@ void SolveWithSchurLM(Assembly& a, const ceres::ParameterBlockOrdering* ordering
   lm.gradient_tolerance = a.options.gradient_tolerance;
   lm.parameter_tolerance = a.options.parameter_tolerance;
   lm.num_threads = a.options.num_threads;
+  lm.factorization_tile = a.options.parallel_schur_tile;
+  lm.tile_flop_ratio = a.options.parallel_schur_tile_flop_ratio;
   lm.verbose = a.options.verbose;
   lm.cancelled = a.options.cancelled;
   std::vector<double*> points;
@@ -681,12 +685,12 @@ void SolveWithSchurLM(Assembly& a, const ceres::ParameterBlockOrdering* ordering
   result.converged = summary.converged;
   result.cancelled = summary.cancelled;
   result.usable = summary.usable && !summary.cancelled;
-  char seconds[240];
+  char seconds[320];
   std::snprintf(seconds, sizeof seconds,
                 " (residuals and Jacobians %.2f s, steps %.2f s of which factorisation %.2f s; reduced system %ld "
-                "columns, factor %.3g nonzeros)",
+                "columns, factorised by %s: %.3g values, %.3g flops)",
                 summary.evaluate_seconds, summary.step_seconds, summary.factorize_seconds, summary.reduced_columns,
-                summary.factor_nonzeros);
+                summary.factorization.c_str(), summary.factor_nonzeros, summary.factor_flops);
   result.message = summary.message + seconds;
   if (result.usable) {
     CopyOut(a.x, a.options.use_spline_prior, &a.problem, &result);

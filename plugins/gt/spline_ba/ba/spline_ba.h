@@ -188,6 +188,13 @@ struct SplineBAOptions {
   // eta, its default 0.1): the conjugate gradients stop at this relative
   // residual.
   double iterative_eta = 0.001;
+  // parallel_schur: the reduced system factorised in tiles of this size on
+  // every thread (tiled_cholesky.h) where that costs at most
+  // parallel_schur_tile_flop_ratio times CHOLMOD's operations (a system
+  // dense enough, as a floor's is); else, and with 0, by CHOLMOD (one thread
+  // on Debian's ATLAS), a rejected step's retry computed beside it.
+  int parallel_schur_tile = 128;
+  double parallel_schur_tile_flop_ratio = 2;
   // Ceres threads of this solve only (no process-wide state is touched).
   int num_threads = 1;
   bool verbose = false;  // Ceres per-iteration log to stdout
