@@ -119,6 +119,7 @@ class Solver {
   void Order(const std::vector<int>& uses);
   void Storage();
   void Pattern();
+  void Analyze(SuiteSparse_long n, SuiteSparse_long* rowind);
   bool Linearize(bool first);
   void Robustify(int k);
   void JacobiScaling();
@@ -388,6 +389,12 @@ void Solver::Pattern() {
     }
   colptr_[n] = at;
   std::fill(first.values, first.values + nnz, 0.0);
+  Analyze(n, rowind);
+}
+
+// CHOLMOD's analysis of the pattern and the factorisation chosen for it.
+void Solver::Analyze(SuiteSparse_long n, SuiteSparse_long* rowind) {
+  Damped& first = damped_[0];
   if (n > 0) first.factor = cholmod_l_analyze(first.matrix, &first.common);
   summary_.reduced_columns = n;
   summary_.factor_nonzeros = first.common.lnz;

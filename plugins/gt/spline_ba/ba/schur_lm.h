@@ -12,23 +12,25 @@
 // adjustment - a modern synthesis", 2000, section 6.1):
 //   S = A - W^T E^-1 W,  S dc = bc - W^T E^-1 bp,  dp = E^-1 (bp - W dc),
 // with E block-diagonal (one 3x3 block per point). S keeps one sparsity
-// pattern for the whole solve; CHOLMOD analyses it once and factorises it
-// every step. The trust region, the Jacobi scaling, the robust-loss
-// correction and the stopping rules are those of Ceres' LEVENBERG_MARQUARDT
-// with its default options, so both minimise the same cost the same way;
-// their results agree to the problem's conditioning, not bit for bit.
+// pattern for the whole solve; CHOLMOD analyses it once (its fill-reducing
+// ordering), and every step factorises it: in dense tiles on every thread
+// (tiled_cholesky.h) when S is dense enough, else by CHOLMOD. The trust
+// region, the Jacobi scaling, the robust-loss correction and the stopping
+// rules are those of Ceres' LEVENBERG_MARQUARDT with its default options, so
+// both minimise the same cost the same way; their results agree to the
+// problem's conditioning, not bit for bit.
 // Differences: at a parameter bound a coordinate the descent pushes out is
 // held for the step and a step crossing a bound is shortened to it (Ceres
 // runs a projected line search instead), and the gradient test uses the
 // gradient's max norm.
 //
-// With two threads or more, the step at the next smaller trust region is
-// computed beside the current one (its reduced system assembled with it, its
-// factorisation on the second thread): a rejected step then costs no
-// factorisation of its own, the one serial part left (CHOLMOD on a
-// single-threaded BLAS). Every sum is taken in an order that does not depend
-// on the threads, so the result is the same bits at any thread count (test
-// SchurLM.SameBitsAtAnyThreadCount).
+// With CHOLMOD (single-threaded on Debian's ATLAS) and two threads or more,
+// the step at the next smaller trust region is computed beside the current
+// one (its reduced system assembled with it, its factorisation on the second
+// thread): a rejected step then costs no factorisation of its own. Every sum
+// is taken in an order that does not depend on the threads, and the choice of
+// factorisation does not either, so the result is the same bits at any thread
+// count (test SchurLM.SameBitsAtAnyThreadCount).
 #ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SCHUR_LM_H_
 #define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_SCHUR_LM_H_
 

@@ -8,8 +8,9 @@
 // fill-reducing ordering, is cut into tiles of `tile` x `tile`; a tile of the
 // factor that stays zero is neither stored nor touched (its pattern is the
 // block symbolic factorisation of the tiles' pattern), and the others are
-// factorised right-looking (Golub & Van Loan, "Matrix Computations", 4th ed.,
-// algorithm 4.2.2 in block form, left-looking by tile): each tile, on one
+// factorised tile by tile (the tiled Cholesky of Buttari et al., "A class of
+// parallel tiled linear algebra algorithms for multicore architectures",
+// Parallel Computing 2009, left-looking and skipping zero tiles): each tile, on one
 // thread, takes its updates A_ij -= L_ik L_jk^T as the tiles of the columns
 // k < j become final, then its Cholesky (a diagonal tile) or its triangular
 // solve against L_jj. The threads claim tiles in column order and wait only
