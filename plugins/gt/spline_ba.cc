@@ -47,7 +47,7 @@ void OuterLoopOptions::Declare(ParamSchema<OuterLoopOptions>& s) {
   s.Add("max_iterations", &O::ba, &sfm::SplineBAOptions::max_iterations, "solver iterations per round").Range(1, 10000);
   s.Add("linear_solver", &O::ba, &sfm::SplineBAOptions::linear_solver,
         "BA linear solver: auto (sparse_schur up to sparse_schur_max_images images), sparse_schur, iterative_schur, "
-        "dense_schur (Ceres'), or parallel_schur (our Levenberg-Marquardt, reduced system assembled by every thread without locks)")
+        "dense_schur (Ceres'), or parallel_schur (our Levenberg-Marquardt, the reduced system assembled without locks and factorised by every thread)")
       .Choices({"auto", "sparse_schur", "iterative_schur", "dense_schur", "parallel_schur"});
   s.Add("sparse_library", &O::ba, &sfm::SplineBAOptions::sparse_library,
         "sparse Cholesky of sparse_schur: suite_sparse (CHOLMOD on the system BLAS) or eigen_sparse (no BLAS)")
