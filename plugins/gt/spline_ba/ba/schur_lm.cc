@@ -99,7 +99,7 @@ struct Damped {
   bool started = false;
   cholmod_sparse* matrix = nullptr;
   cholmod_factor* factor = nullptr;           // CHOLMOD's ordering, and its factor when not tiled
-  std::unique_ptr<TiledCholesky> tiled;       // the factorisation when options.factorization_tile > 0
+  std::unique_ptr<TiledCholesky> tiled;       // the factorisation when tiles were chosen (Solver::Analyze)
   double* values = nullptr;  // matrix->x
   std::vector<double> e, e_inverse;  // by point: e = E^-1 bp, E^-1 (3 x 3)
   std::vector<double> rhs, step;     // the reduced right-hand side; the whole step (scaled coordinates)
@@ -170,8 +170,8 @@ class Solver {
   std::vector<double> gradient_, model_;
   std::vector<double> saved_;  // the free blocks' values before a candidate step
 
-  // With two threads or more, the step at the next smaller radius is
-  // computed beside the current one (speculation): a rejected step then
+  // With CHOLMOD and two threads or more, the step at the next smaller radius
+  // is computed beside the current one (speculation): a rejected step then
   // costs no factorisation of its own. Either way the steps are the same bits.
   bool speculate_ = false;
   std::array<Damped, 2> damped_;
@@ -404,8 +404,8 @@ void Solver::Analyze(SuiteSparse_long n, SuiteSparse_long* rowind) {
     // Tiles when they cost at most tile_flop_ratio (2) times CHOLMOD's
     // operations: Eigen's products on whole tiles ran as fast at 1.7 times
     // the operations as ATLAS on CHOLMOD's supernodes (the demo's gt node),
-    // and they use every thread. A sparser system stays with CHOLMOD. The choice does not depend
-    // on the thread count, so neither do the result's bits.
+    // and they use every thread. A sparser system stays with CHOLMOD. The
+    // choice does not depend on the thread count, so neither do the bits.
     auto tiled = std::make_unique<TiledCholesky>();
     const std::string why = tiled->Analyze(n, colptr_, rowind, static_cast<SuiteSparse_long*>(first.factor->Perm),
                                            options_.factorization_tile);
@@ -735,7 +735,7 @@ void Solver::HoldActiveBounds(Damped& d) {
   }
 }
 
-// The reduced step of d by CHOLMOD; d.solved false when d is not positive
+// The reduced step of d (by its tiles or CHOLMOD); d.solved false when d is not positive
 // definite, d.failed on an error. Touches only d (runs beside another system).
 void Solver::Factorize(Damped& d) {
   const int n = static_cast<int>(d.matrix ? d.matrix->nrow : 0);
