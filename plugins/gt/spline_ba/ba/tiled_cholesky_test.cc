@@ -1,5 +1,7 @@
 #include "tiled_cholesky.h"
 
+#include "reduced_systems.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
@@ -12,53 +14,6 @@
 
 namespace locforge::sfm {
 namespace {
-
-// A sparse symmetric positive definite matrix like a reduced camera system:
-// 6 x 6 blocks on a band (neighbouring poses) plus random far couplings
-// (loop closures), dense inside each coupled block pair.
-struct Sparse {
-  int64_t n = 0;
-  std::vector<int64_t> start, row;  // lower triangle by columns
-  std::vector<double> value;
-  Eigen::MatrixXd dense;
-};
-
-Sparse MakeSystem(int blocks, int band, int loops, unsigned seed) {
-  std::mt19937 random(seed);
-  const int n = 6 * blocks;
-  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(0, n);
-  std::vector<std::pair<int, int>> pairs;
-  for (int b = 0; b < blocks; ++b)
-    for (int c = b + 1; c <= std::min(blocks - 1, b + band); ++c) pairs.emplace_back(b, c);
-  std::uniform_int_distribution<int> any(0, blocks - 1);
-  for (int l = 0; l < loops; ++l) {
-    const int a = any(random), b = any(random);
-    if (a != b) pairs.emplace_back(std::min(a, b), std::max(a, b));
-  }
-  std::normal_distribution<double> normal;
-  Sparse s;
-  s.n = n;
-  s.dense = Eigen::MatrixXd::Identity(n, n) * 0.5;
-  for (const auto& [a, b] : pairs) {  // a residual of 8 rows on two blocks
-    Eigen::MatrixXd rows = Eigen::MatrixXd::Zero(8, n);
-    for (int i = 0; i < 8; ++i)
-      for (int k = 0; k < 6; ++k) {
-        rows(i, 6 * a + k) = normal(random);
-        rows(i, 6 * b + k) = normal(random);
-      }
-    s.dense += rows.transpose() * rows;
-  }
-  s.start.push_back(0);
-  for (int c = 0; c < n; ++c) {
-    for (int r = c; r < n; ++r)
-      if (s.dense(r, c) != 0) {
-        s.row.push_back(r);
-        s.value.push_back(s.dense(r, c));
-      }
-    s.start.push_back(static_cast<int64_t>(s.row.size()));
-  }
-  return s;
-}
 
 std::vector<int64_t> Shuffled(int64_t n, unsigned seed) {
   std::vector<int64_t> order(n);
