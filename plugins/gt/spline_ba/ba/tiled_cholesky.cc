@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <memory>
 #include <mutex>
+#include <utility>
 
 namespace locforge::sfm {
 
@@ -35,12 +36,16 @@ std::string TiledCholesky::Analyze(int64_t n, const int64_t* column_start, const
   std::vector<char> stored(nt * nt, 0);  // lower tiles (i >= j) of the factor
   for (size_t j = 0; j < nt; ++j) stored[j * nt + j] = 1;
   column_start_.assign(column_start, column_start + n + 1);
+  // Entry e of column c at (a, b) of the permuted lower triangle.
+  auto permuted = [&](int64_t e, int64_t c) {
+    return std::make_pair(std::max(pivot[row[e]], pivot[c]), std::min(pivot[row[e]], pivot[c]));
+  };
   for (int64_t c = 0; c < n; ++c)
     for (int64_t e = column_start[c]; e < column_start[c + 1]; ++e) {
       if (row[e] < 0 || row[e] >= n) return "a row index is out of range";
       if (row[e] < c) continue;
-      const int64_t a = pivot[row[e]], b = pivot[c];
-      stored[std::max(a, b) / tile * nt + std::min(a, b) / tile] = 1;
+      const auto [a, b] = permuted(e, c);
+      stored[a / tile * nt + b / tile] = 1;
     }
   // The block symbolic factorisation: L_ik and L_jk fill L_ij.
   below_.assign(nt, {});
@@ -54,7 +59,6 @@ std::string TiledCholesky::Analyze(int64_t n, const int64_t* column_start, const
         sources[below_[k][a] * nt + below_[k][b]].push_back(static_cast<int>(k));
       }
   }
-  tile_at_.assign(nt * nt, -1);
   tile_id_.assign(nt * nt, -1);
   tiles_.clear();
   sources_.clear();
@@ -63,23 +67,22 @@ std::string TiledCholesky::Analyze(int64_t n, const int64_t* column_start, const
     for (size_t i = j; i < nt; ++i)
       if (stored[i * nt + j]) {
         tile_id_[i * nt + j] = static_cast<int>(tiles_.size());
-        tiles_.emplace_back(static_cast<int>(i), static_cast<int>(j));
+        tiles_.push_back({static_cast<int>(i), static_cast<int>(j), size});
         sources_.push_back(std::move(sources[i * nt + j]));
-        tile_at_[i * nt + j] = size;
         size += static_cast<int64_t>(Rows(static_cast<int>(i))) * Rows(static_cast<int>(j));
       }
   storage_.assign(size, 0.0);
   flops_ = 0;
   for (size_t t = 0; t < tiles_.size(); ++t) {
-    const double ri = Rows(tiles_[t].first), rj = Rows(tiles_[t].second);
+    const double ri = Rows(tiles_[t].i), rj = Rows(tiles_[t].j);
     for (int k : sources_[t]) flops_ += 2 * ri * rj * Rows(k);
-    flops_ += tiles_[t].first == tiles_[t].second ? rj * rj * rj / 3 : ri * rj * rj;
+    flops_ += tiles_[t].i == tiles_[t].j ? rj * rj * rj / 3 : ri * rj * rj;
   }
   destination_.assign(column_start[n], -1);
   for (int64_t c = 0; c < n; ++c)
     for (int64_t e = column_start[c]; e < column_start[c + 1]; ++e) {
       if (row[e] < c) continue;
-      const int64_t a = std::max(pivot[row[e]], pivot[c]), b = std::min(pivot[row[e]], pivot[c]);
+      const auto [a, b] = permuted(e, c);
       const int i = static_cast<int>(a / tile), j = static_cast<int>(b / tile);
       destination_[e] = Index(i, j) + (b % tile) * Rows(i) + a % tile;
     }
@@ -112,7 +115,7 @@ bool TiledCholesky::Factorize(const double* values, int threads) {
     finished.wait(lock, [&] { return final[t].load(std::memory_order_acquire); });
   };
   ParallelFor(count, threads, 1, [&](int t) {
-    const auto [i, j] = tiles_[t];
+    const int i = tiles_[t].i, j = tiles_[t].j;
     Map Aij(Tile(i, j), Rows(i), Rows(j));
     for (int k : sources_[t]) {
       wait(TileId(i, k));

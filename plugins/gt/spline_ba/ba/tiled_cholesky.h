@@ -23,7 +23,6 @@
 #include <algorithm>
 #include <cstdint>
 #include <string>
-#include <utility>
 #include <vector>
 
 namespace locforge::sfm {
@@ -49,8 +48,8 @@ class TiledCholesky {
 
  private:
   int Rows(int t) const { return static_cast<int>(std::min<int64_t>(tile_, n_ - static_cast<int64_t>(t) * tile_)); }
-  int64_t Index(int i, int j) const { return tile_at_[static_cast<size_t>(i) * num_tiles_ + j]; }
   int TileId(int i, int j) const { return tile_id_[static_cast<size_t>(i) * num_tiles_ + j]; }
+  int64_t Index(int i, int j) const { return tiles_[TileId(i, j)].offset; }
   double* Tile(int i, int j) { return storage_.data() + Index(i, j); }
   const double* Tile(int i, int j) const { return storage_.data() + Index(i, j); }
 
@@ -58,10 +57,13 @@ class TiledCholesky {
   int tile_ = 0, num_tiles_ = 0;
   double flops_ = 0;
   std::vector<int64_t> order_;              // pivot k -> original index
-  std::vector<int64_t> tile_at_;            // (i, j) -> offset in storage_ (column-major tile), -1: zero
   std::vector<std::vector<int>> below_;     // by tile column j: the tile rows i > j with L_ij stored
   std::vector<int> tile_id_;                // (i, j) -> index in tiles_, -1: zero
-  std::vector<std::pair<int, int>> tiles_;  // the stored tiles (i, j), column-major
+  struct StoredTile {
+    int i, j;
+    int64_t offset;  // of its values in storage_ (column-major)
+  };
+  std::vector<StoredTile> tiles_;           // column-major
   std::vector<std::vector<int>> sources_;   // by stored tile (i, j): the k < j with L_ik and L_jk stored
   std::vector<int64_t> destination_;        // by pattern entry: its offset in storage_, -1: ignored
   std::vector<int64_t> column_start_;       // the pattern's columns (for the scatter)
