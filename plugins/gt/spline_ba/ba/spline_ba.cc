@@ -239,6 +239,12 @@ void FitSplines(const BAProblem& p, double knot_spacing_s, Parameters* x) {
     if (!count[t]) continue;
     const auto& tr = p.trajectories[t];
     x->splines[t] = SE3Spline::Fit(tr.times_s, tr.T_world_body, knot_spacing_s, begin[t], end[t]);
+    if (t < p.start_splines.size()) {
+      const SE3Spline& start = p.start_splines[t];
+      if (start.t0 == x->splines[t].t0 && start.dt == x->splines[t].dt &&
+          start.control.size() == x->splines[t].control.size())
+        x->splines[t].control = start.control;
+    }
     for (const Pose& c : x->splines[t].control) {
       std::array<double, 7> a;
       PoseToArray(c, a.data());
@@ -440,9 +446,11 @@ void AddTrajectoryPriors(Assembly& a) {
   std::array<double, 7> identity;
   PoseToArray(Pose(), identity.data());
   x.alignments.assign(x.controls.size(), identity);
+  for (size_t t = 0; t < std::min(x.alignments.size(), a.problem.start_alignments.size()); ++t)
+    PoseToArray(a.problem.start_alignments[t], x.alignments[t].data());
   x.log_scales.assign(x.controls.size(), 0.0);
   const auto wa = SqrtInformation(options.alignment_sigma_rotation_rad, options.alignment_sigma_translation_m);
-  bool reference_taken = false;
+  bool reference_taken = a.problem.reference_outside;
   for (size_t t = 0; t < x.controls.size(); ++t) {
     auto& c = x.controls[t];
     if (c.empty()) continue;
@@ -558,7 +566,13 @@ void AddTimeOffsetGauge(Assembly& a) {
 void SetManifoldsAndConstants(Assembly& a, bool splines) {
   for (size_t i = 0; i < a.problem.images.size(); ++i)
     if (a.image_observed[i]) a.ceres.SetManifold(a.x.image_pose[i].data(), &a.se3);
-  if (!splines && a.options.fix_gauge) HoldImageGauge(a);
+  bool any_fixed = false;
+  for (size_t i = 0; i < a.problem.images.size(); ++i)
+    if (a.image_observed[i] && a.problem.images[i].fixed) {
+      a.ceres.SetParameterBlockConstant(a.x.image_pose[i].data());
+      any_fixed = true;
+    }
+  if (!splines && a.options.fix_gauge && !any_fixed) HoldImageGauge(a);
   for (size_t s = 0; s < a.problem.sensors.size(); ++s) {
     SetIntrinsics(a, s);
     SetExtrinsics(a, s);

@@ -59,6 +59,7 @@ struct BAProblem {
     double time_s = 0;    // the image's own timestamp, same clock/origin as its trajectory
     Pose T_world_camera;  // world-from-camera; initial value, the adjusted one is written back
     std::string name;
+    bool fixed = false;   // pose held (an image of a neighbouring block, blocked_ba.h)
   };
   struct Point {
     Eigen::Vector3d xyz = Eigen::Vector3d::Zero();  // world frame
@@ -73,6 +74,15 @@ struct BAProblem {
   std::vector<Image> images;
   std::vector<Point> points;
   std::vector<Observation> observations;
+  // With align_trajectories: the reference trajectory (the one that keeps the
+  // LiDAR frame) is outside this problem, so every trajectory gets an
+  // alignment (a block of a larger problem, blocked_ba.h).
+  bool reference_outside = false;
+  // Optional start of each trajectory's adjusted state (a block's previous
+  // pass, blocked_ba.h): its spline, used when its knots are those the fit to
+  // the samples would choose, and its alignment. Empty: fitted / identity.
+  std::vector<SE3Spline> start_splines;
+  std::vector<Pose> start_alignments;
 
   // "" when every index is in range and every camera model is supported,
   // else the first problem found.
