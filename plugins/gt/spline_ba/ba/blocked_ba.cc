@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <memory>
 #include <cmath>
 #include <numeric>
 #include <tuple>
 
+#include <Eigen/Eigenvalues>
 #include <ceres/autodiff_cost_function.h>
+#include <ceres/loss_function.h>
 #include <ceres/manifold.h>
 #include <ceres/problem.h>
 #include <ceres/product_manifold.h>
@@ -52,24 +55,61 @@ struct Block {
   std::vector<int> image_of, point_of, trajectory_of;  // block index -> full index
 };
 
+// What the observations of point p by images outside block b say about p,
+// their cost 0.5 sum rho(|r|^2) to second order (Gauss-Newton, the Cauchy
+// weight rho' at the current estimate) as 0.5 |S (x - x0) + c|^2 with
+// S^T S = H and S^T c = g: the gradient is exact, so the passes' fixed point
+// is the whole BA's minimum; only the held images' poses are needed.
+BAProblem::PointSummary Summarise(const BAProblem& full, const std::vector<const BAProblem::Observation*>& held,
+                                  double cauchy_scale_px) {
+  BAProblem::PointSummary summary;
+  summary.x0 = full.points[held.front()->point].xyz;
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  const ceres::CauchyLoss loss(cauchy_scale_px);
+  for (const BAProblem::Observation* o : held) {
+    const BAProblem::Image& im = full.images[o->image];
+    if (!((im.T_world_camera.Inverse() * summary.x0).z() > 0)) continue;  // as RunSplineBA: behind, not used
+    std::array<double, 7> pose;
+    PoseToArray(im.T_world_camera, pose.data());
+    const auto& params = full.sensors[im.sensor].camera.params;
+    std::unique_ptr<ceres::CostFunction> f(CreateReprojectionError(full.sensors[im.sensor].camera.model, o->xy));
+    const double* parameters[3] = {pose.data(), summary.x0.data(), params.data()};
+    Eigen::Vector2d r;
+    Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J;
+    double* jacobians[3] = {nullptr, J.data(), nullptr};
+    if (!f->Evaluate(parameters, r.data(), jacobians)) continue;
+    double rho[3];
+    loss.Evaluate(r.squaredNorm(), rho);
+    H += rho[1] * J.transpose() * J;
+    g += rho[1] * J.transpose() * r;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(H);
+  const double floor = 1e-12 * std::max(eigen.eigenvalues().maxCoeff(), 0.0);
+  for (int k = 0; k < 3; ++k) {
+    const double lambda = eigen.eigenvalues()(k);
+    if (!(lambda > floor)) continue;  // a direction the held views do not see
+    const Eigen::Vector3d v = eigen.eigenvectors().col(k);
+    summary.S.row(k) = std::sqrt(lambda) * v.transpose();
+    summary.c(k) = v.dot(g) / std::sqrt(lambda);
+  }
+  return summary;
+}
+
 // Block b of `full`: its images (free, tied to their trajectories, whose
-// priors are the LiDAR samples `lidar`), every point they observe (free), and
-// every other image that observes one of those points (held, no prior).
+// priors are the LiDAR samples `lidar`) and every point they observe (free);
+// with `coupled`, each point's observations by the other blocks' images as
+// one summary (above), those images held at their latest estimate.
 // The splines and alignments of the last pass start the block's trajectories.
 Block ExtractBlock(const BAProblem& full, const std::vector<BAProblem::Trajectory>& lidar,
                    const std::vector<int>& block_of_image, int b, int reference_trajectory,
-                   const std::vector<SE3Spline>& splines, const std::vector<Pose>& alignments, bool coupled) {
+                   const std::vector<SE3Spline>& splines, const std::vector<Pose>& alignments, bool coupled,
+                   double cauchy_scale_px) {
   Block k;
   const size_t ni = full.images.size(), np = full.points.size();
-  std::vector<char> point_in(np, 0), image_in(ni, 0);
+  std::vector<char> point_in(np, 0);
   for (const auto& o : full.observations)
     if (block_of_image[o.image] == b) point_in[o.point] = 1;
-  if (coupled)
-    for (const auto& o : full.observations)
-      if (point_in[o.point]) image_in[o.image] = 1;
-  for (size_t i = 0; i < ni; ++i)
-    if (block_of_image[i] == b) image_in[i] = 1;
-
   std::vector<int> trajectory_index(full.trajectories.size(), -1), image_index(ni, -1), point_index(np, -1);
   for (size_t i = 0; i < ni; ++i)
     if (block_of_image[i] == b && full.images[i].trajectory >= 0) trajectory_index[full.images[i].trajectory] = 0;
@@ -84,12 +124,11 @@ Block ExtractBlock(const BAProblem& full, const std::vector<BAProblem::Trajector
   k.problem.reference_outside = reference_trajectory < 0 || trajectory_index[reference_trajectory] < 0;
   k.problem.sensors = full.sensors;
   for (size_t i = 0; i < ni; ++i) {
-    if (!image_in[i]) continue;
+    if (block_of_image[i] != b) continue;
     image_index[i] = static_cast<int>(k.image_of.size());
     k.image_of.push_back(static_cast<int>(i));
     BAProblem::Image im = full.images[i];
-    im.fixed = block_of_image[i] != b;
-    im.trajectory = im.fixed || im.trajectory < 0 ? -1 : trajectory_index[im.trajectory];
+    im.trajectory = im.trajectory < 0 ? -1 : trajectory_index[im.trajectory];
     k.problem.images.push_back(im);
   }
   for (size_t p = 0; p < np; ++p) {
@@ -98,44 +137,32 @@ Block ExtractBlock(const BAProblem& full, const std::vector<BAProblem::Trajector
     k.point_of.push_back(static_cast<int>(p));
     k.problem.points.push_back(full.points[p]);
   }
-  for (const auto& o : full.observations)
-    if (point_in[o.point] && image_in[o.image]) k.problem.observations.push_back({image_index[o.image], point_index[o.point], o.xy});
+  std::vector<std::vector<const BAProblem::Observation*>> held(coupled ? k.point_of.size() : 0);
+  for (const auto& o : full.observations) {
+    if (!point_in[o.point]) continue;
+    if (image_index[o.image] >= 0)
+      k.problem.observations.push_back({image_index[o.image], point_index[o.point], o.xy});
+    else if (coupled)
+      held[point_index[o.point]].push_back(&o);
+  }
+  for (size_t p = 0; p < held.size(); ++p)
+    if (!held[p].empty()) {
+      k.problem.point_summaries.push_back(Summarise(full, held[p], cauchy_scale_px));
+      k.problem.point_summaries.back().point = static_cast<int>(p);
+    }
   return k;
 }
 
 // The block's adjusted images (not the held ones), points and trajectories into `full`.
 void WriteBack(const Block& k, const SplineBAResult& solved, BAProblem* full, std::vector<SE3Spline>* splines,
                std::vector<Pose>* alignments) {
-  for (size_t i = 0; i < k.image_of.size(); ++i)
-    if (!k.problem.images[i].fixed) full->images[k.image_of[i]].T_world_camera = k.problem.images[i].T_world_camera;
+  for (size_t i = 0; i < k.image_of.size(); ++i) full->images[k.image_of[i]].T_world_camera = k.problem.images[i].T_world_camera;
   for (size_t p = 0; p < k.point_of.size(); ++p) full->points[k.point_of[p]] = k.problem.points[p];
   for (size_t t = 0; t < k.trajectory_of.size(); ++t) {
     full->trajectories[k.trajectory_of[t]] = k.problem.trajectories[t];
     if (t < solved.splines.size()) (*splines)[k.trajectory_of[t]] = solved.splines[t];
     if (t < solved.trajectory_alignments.size()) (*alignments)[k.trajectory_of[t]] = solved.trajectory_alignments[t];
   }
-}
-
-// The calibration pass: every pose and point of `full` held, the shared
-// calibration (and the splines it is seen through) adjusted; only the
-// sensors are written back.
-SplineBAResult Calibrate(const SplineBAOptions& options, const std::vector<BAProblem::Trajectory>& lidar,
-                         const std::vector<SE3Spline>& splines, const std::vector<Pose>& alignments,
-                         BAProblem* full) {
-  BAProblem all = *full;
-  all.trajectories = lidar;
-  all.start_splines = splines;
-  all.start_alignments = alignments;
-  for (auto& im : all.images) im.fixed = true;
-  SplineBAOptions calibration = options;
-  calibration.refine_points = false;
-  const SplineBAResult solved = RunSplineBA(calibration, &all);
-  if (solved.usable) full->sensors = all.sensors;
-  return solved;
-}
-
-bool Calibrates(const SplineBAOptions& options) {
-  return options.calibrate_intrinsics || options.calibrate_rotations || options.estimate_time_offsets;
 }
 
 // Largest camera centre (m) and rotation (deg) change between two states.
@@ -328,15 +355,16 @@ struct Passes {
   std::vector<Pose> alignments;
 };
 
-// One pass: every block in turn (the first pass without the neighbours' held
-// images: each block alone, a start near its own optimum), then the
-// correction and the calibration. False (message) when a solve is not usable.
+// One pass: every block in turn (the first pass without the neighbours'
+// summaries: each block alone, a start near its own optimum), then the
+// correction. False (message) when a solve is not usable.
 bool RunPass(const SplineBAOptions& options, int pass, Passes* s, BlockedBAResult* result) {
   result->block_images.assign(s->blocks, 0);
   result->block_observations.assign(s->blocks, 0);
+  result->block_summaries.clear();
   for (int b = 0; b < s->blocks; ++b) {
     Block k = ExtractBlock(s->work, s->lidar, s->block_of_image, b, s->reference, result->splines, s->alignments,
-                           /*coupled=*/pass > 1);
+                           /*coupled=*/pass > 1, options.cauchy_scale_px);
     const SplineBAResult solved = RunSplineBA(s->in_block, &k.problem);
     if (!solved.usable) {
       result->message = "pass " + std::to_string(pass) + ", block " + std::to_string(b) + ": " + solved.message;
@@ -344,22 +372,16 @@ bool RunPass(const SplineBAOptions& options, int pass, Passes* s, BlockedBAResul
     }
     WriteBack(k, solved, &s->work, &result->splines, &s->alignments);
     result->block_observations[b] = static_cast<int>(k.problem.observations.size());
-    for (const auto& im : k.problem.images) result->block_images[b] += im.fixed ? 0 : 1;
+    result->block_images[b] = static_cast<int>(k.problem.images.size());
+    result->block_summaries.push_back(static_cast<int>(k.problem.point_summaries.size()));
   }
   if (pass > 1) CorrectCommonMotion(options, s->lidar, s->reference, &result->splines, &s->alignments, &s->work);
-  if (Calibrates(options)) {
-    const SplineBAResult solved = Calibrate(options, s->lidar, result->splines, s->alignments, &s->work);
-    if (!solved.usable) {
-      result->message = "pass " + std::to_string(pass) + ", calibration: " + solved.message;
-      return false;
-    }
-  }
   return true;
 }
 
 }  // namespace
 
-// Passes of (every block, the correction, the calibration) until the cameras stop moving.
+// Passes of (every block, the correction) until the cameras stop moving.
 BlockedBAResult RunBlockedSplineBA(const SplineBAOptions& options, const BlockedBAOptions& blocked,
                                    BAProblem* problem) {
   const auto start = std::chrono::steady_clock::now();
@@ -368,6 +390,9 @@ BlockedBAResult RunBlockedSplineBA(const SplineBAOptions& options, const Blocked
   if (why.empty()) why = blocked.CheckMessage();
   if (why.empty() && !options.use_spline_prior) why = "a blocked BA needs the spline prior (use_spline_prior)";
   if (why.empty() && options.scale_trajectories) why = "scale_trajectories ties every trajectory: not blocked";
+  if (why.empty() && (options.calibrate_intrinsics || options.calibrate_rotations || options.estimate_time_offsets))
+    why = "the calibration (intrinsics, camera rotations, clock offsets) is shared by every block: hold it "
+          "(calibrate it in whole rounds first)";
   if (why.empty()) why = problem->Validate();
   if (!why.empty()) {
     result.message = "refused: " + why;
@@ -376,7 +401,6 @@ BlockedBAResult RunBlockedSplineBA(const SplineBAOptions& options, const Blocked
   Passes s{*problem, problem->trajectories, AssignBlocks(*problem, blocked.blocks), 0, ReferenceTrajectory(*problem),
            options, std::vector<Pose>(problem->trajectories.size())};
   s.blocks = s.block_of_image.empty() ? 0 : *std::max_element(s.block_of_image.begin(), s.block_of_image.end()) + 1;
-  s.in_block.calibrate_intrinsics = s.in_block.calibrate_rotations = s.in_block.estimate_time_offsets = false;
   // A block starts near its optimum after the first passes: Ceres' relative
   // cost tolerance would stop it at once while the blocks still pull apart.
   s.in_block.function_tolerance = std::min(s.in_block.function_tolerance, 1e-10);

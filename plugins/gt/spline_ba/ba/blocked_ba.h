@@ -1,16 +1,16 @@
 // The spline bundle adjustment of a problem too large for one node, in
 // blocks (issue 40): the platform trajectories are dealt into blocks of
 // about equal image counts; each block adjusts its images, its trajectories
-// and every point its images observe, the images of the other blocks that
-// observe those points held at their latest estimate (block coordinate
+// and every point its images observe, and holds its own observations only:
+// the other blocks' observations of its points enter as one quadratic
+// summary per point, from their images' latest estimate (block coordinate
 // descent, Gauss-Seidel order). Between passes a coarse correction moves the
-// whole state by the one similarity that the blocks cannot move (they hold
-// each other; only the LiDAR priors, the lever arms and the kinematics see
-// it). The calibration (intrinsics, camera rotations, clock offsets), which
-// every block shares, is held in the blocks and adjusted by a pass of its own
-// (not yet within 1 mm of the whole: see README.md). Passes repeat until one
-// moves no camera by more than the tolerance. Each block is an ordinary
-// RunSplineBA: its memory is that of its own images and points.
+// whole state by the one similarity the blocks cannot move (they hold each
+// other; only the LiDAR priors, the lever arms and the kinematics see it).
+// Passes repeat until one moves no camera by more than the tolerance. Each
+// block is an ordinary RunSplineBA: its memory is that of its own images,
+// observations and points. The calibration (intrinsics, camera rotations,
+// clock offsets), shared by every block, is held (calibrated in whole rounds).
 #ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_BLOCKED_BA_H_
 #define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_BLOCKED_BA_H_
 
@@ -43,6 +43,7 @@ struct BlockedBAResult {
   double last_change_m = 0, last_change_deg = 0;  // the last pass' largest camera change
   std::vector<int> block_images;                  // images adjusted by each block
   std::vector<int> block_observations;            // observations in each block's problem
+  std::vector<int> block_summaries;               // its points' summaries of the neighbours' observations
   std::vector<SE3Spline> splines;                 // per trajectory, from its block's last solve
   std::vector<Pose> trajectory_alignments;        // per trajectory (identity: the reference)
   double seconds = 0;
@@ -57,7 +58,7 @@ std::vector<int> AssignBlocks(const BAProblem& problem, int blocks);
 // Adjusts `problem` in place as RunSplineBA does, block by block. Refused
 // (message, nothing changed): invalid options or problem, no spline prior
 // (plain BA has no trajectories to deal), scale_trajectories (its mean scale
-// ties every trajectory together).
+// ties every trajectory together), any calibration adjusted.
 BlockedBAResult RunBlockedSplineBA(const SplineBAOptions& options, const BlockedBAOptions& blocked,
                                    BAProblem* problem);
 

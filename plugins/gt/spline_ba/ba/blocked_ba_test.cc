@@ -68,15 +68,18 @@ TEST(BlockedBA, TwoSequencesSameAsWhole) {
   ASSERT_TRUE(r.usable) << r.message;
   const auto [dm, ddeg] = Difference(whole, blocked);
   const SceneErrors ew = CompareToTruth(whole, Scene().truth), eb = CompareToTruth(blocked, Scene().truth);
-  std::printf("  %s in %.1f s (whole %.1f s); blocks of %d + %d images, %d + %d observations (whole %d); "
+  std::printf("  %s in %.1f s (whole %.1f s); blocks of %d + %d images, %d + %d observations and %d + %d point "
+              "summaries (whole: %d observations); "
               "blocked vs whole: %.4f mm / %.5f deg; against the truth: whole %.3f cm / %.4f deg, blocked %.3f cm / "
               "%.4f deg\n",
               r.message.c_str(), r.seconds, w.seconds, r.block_images[0], r.block_images[1], r.block_observations[0],
-              r.block_observations[1], w.num_observations, 1000 * dm, ddeg, 100 * ew.position_rms_m,
+              r.block_observations[1], r.block_summaries[0], r.block_summaries[1], w.num_observations, 1000 * dm, ddeg, 100 * ew.position_rms_m,
               ew.rotation_rms_deg, 100 * eb.position_rms_m, eb.rotation_rms_deg);
   EXPECT_TRUE(r.converged);
   ASSERT_EQ(r.block_images.size(), 2u);
   EXPECT_EQ(r.block_images[0] + r.block_images[1], static_cast<int>(whole.images.size()));
+  // A block holds its own observations only (its memory), the neighbours' as one summary per point.
+  EXPECT_EQ(r.block_observations[0] + r.block_observations[1], static_cast<int>(whole.observations.size()));
   EXPECT_LT(dm, 0.001);
   EXPECT_LT(ddeg, 0.01);
 }
@@ -85,8 +88,8 @@ TEST(BlockedBA, DealsTrajectoriesByImageCount) {
   BAProblem p;
   p.trajectories.resize(3);
   for (int t = 0; t < 3; ++t)
-    for (int n = 0; n < (t == 0 ? 5 : 3); ++n) p.images.push_back({t, 0, 0.0, Pose(), "", false});
-  p.images.push_back({-1, 0, 0.0, Pose(), "", false});
+    for (int n = 0; n < (t == 0 ? 5 : 3); ++n) p.images.push_back({t, 0, 0.0, Pose(), ""});
+  p.images.push_back({-1, 0, 0.0, Pose(), ""});
   const std::vector<int> b = AssignBlocks(p, 2);
   // 5 images to block 0, then 3 to block 1, then 3 to block 1 (3 < 5); none to block 0.
   EXPECT_EQ(b[0], 0);
@@ -102,6 +105,9 @@ TEST(BlockedBA, RefusesWhatItCannotBlock) {
   const BlockedBAResult r = RunBlockedSplineBA(plain, {}, &p);
   EXPECT_FALSE(r.usable);
   EXPECT_NE(r.message.find("spline prior"), std::string::npos) << r.message;
+  SplineBAOptions calibrating = CalibrationHeld();
+  calibrating.calibrate_intrinsics = true;
+  EXPECT_NE(RunBlockedSplineBA(calibrating, {}, &p).message.find("calibration"), std::string::npos);
   BlockedBAOptions bad;
   bad.blocks = 0;
   EXPECT_NE(RunBlockedSplineBA(CalibrationHeld(), bad, &p).message.find("blocks"), std::string::npos);

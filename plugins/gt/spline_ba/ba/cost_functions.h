@@ -214,6 +214,25 @@ struct NonholonomicError {
   double dt_s, sigma_mps;
 };
 
+// A quadratic cost on a point: e = S (x - x0) + c (BAProblem::PointSummary).
+struct PointSummaryError {
+  PointSummaryError(const Eigen::Vector3d& x0, const Eigen::Matrix3d& S, const Eigen::Vector3d& c)
+      : x0(x0), S(S), c(c) {}
+  template <typename T>
+  bool operator()(const T* x, T* residual) const {
+    const Eigen::Matrix<T, 3, 1> d(x[0] - T(x0.x()), x[1] - T(x0.y()), x[2] - T(x0.z()));
+    const Eigen::Matrix<T, 3, 1> e = S.cast<T>() * d + c.cast<T>();
+    for (int k = 0; k < 3; ++k) residual[k] = e(k);
+    return true;
+  }
+  static ceres::CostFunction* Create(const Eigen::Vector3d& x0, const Eigen::Matrix3d& S, const Eigen::Vector3d& c) {
+    return new ceres::AutoDiffCostFunction<PointSummaryError, 3, 3>(new PointSummaryError(x0, S, c));
+  }
+  Eigen::Vector3d x0;
+  Eigen::Matrix3d S;
+  Eigen::Vector3d c;
+};
+
 // Pull of a control pose to a fixed value (keeps segments without data
 // determined): e = sqrt_info * Log( T_ref^-1 * T_control ).
 struct ControlPoseError {

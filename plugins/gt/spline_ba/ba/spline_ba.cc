@@ -87,6 +87,9 @@ std::string BAProblem::Validate() const {
     if (o.image < 0 || o.image >= ni || o.point < 0 || o.point >= np)
       return "observation " + std::to_string(k) + ": image or point index out of range";
   }
+  for (size_t k = 0; k < point_summaries.size(); ++k)
+    if (point_summaries[k].point < 0 || point_summaries[k].point >= np)
+      return "point summary " + std::to_string(k) + ": point index out of range";
   return "";
 }
 
@@ -566,13 +569,7 @@ void AddTimeOffsetGauge(Assembly& a) {
 void SetManifoldsAndConstants(Assembly& a, bool splines) {
   for (size_t i = 0; i < a.problem.images.size(); ++i)
     if (a.image_observed[i]) a.ceres.SetManifold(a.x.image_pose[i].data(), &a.se3);
-  bool any_fixed = false;
-  for (size_t i = 0; i < a.problem.images.size(); ++i)
-    if (a.image_observed[i] && a.problem.images[i].fixed) {
-      a.ceres.SetParameterBlockConstant(a.x.image_pose[i].data());
-      any_fixed = true;
-    }
-  if (!splines && a.options.fix_gauge && !any_fixed) HoldImageGauge(a);
+  if (!splines && a.options.fix_gauge) HoldImageGauge(a);
   for (size_t s = 0; s < a.problem.sensors.size(); ++s) {
     SetIntrinsics(a, s);
     SetExtrinsics(a, s);
@@ -645,9 +642,17 @@ class CancellationCallback : public ceres::IterationCallback {
 
 // Builds the problem: residuals (1) to (3) and the kinematics, then the
 // manifolds and what is held; false when no observation is in front of its camera.
+// The point summaries of held neighbours (blocked_ba.h), as residuals.
+void AddPointSummaries(Assembly& a) {
+  for (const auto& summary : a.problem.point_summaries)
+    a.ceres.AddResidualBlock(PointSummaryError::Create(summary.x0, summary.S, summary.c), nullptr,
+                             a.x.points[summary.point].data());
+}
+
 bool BuildProblem(Assembly& a, bool splines) {
   AddReprojectionErrors(a);
   if (a.result.num_observations == 0) return false;
+  AddPointSummaries(a);
   if (splines) {
     AddSplinePoseErrors(a);
     AddTrajectoryPriors(a);

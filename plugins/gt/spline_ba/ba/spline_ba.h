@@ -59,7 +59,6 @@ struct BAProblem {
     double time_s = 0;    // the image's own timestamp, same clock/origin as its trajectory
     Pose T_world_camera;  // world-from-camera; initial value, the adjusted one is written back
     std::string name;
-    bool fixed = false;   // pose held (an image of a neighbouring block, blocked_ba.h)
   };
   struct Point {
     Eigen::Vector3d xyz = Eigen::Vector3d::Zero();  // world frame
@@ -83,6 +82,16 @@ struct BAProblem {
   // the samples would choose, and its alignment. Empty: fitted / identity.
   std::vector<SE3Spline> start_splines;
   std::vector<Pose> start_alignments;
+  // A quadratic cost on a point, 0.5 |S (x - x0) + c|^2: what the
+  // observations of images outside this problem (a neighbouring block's,
+  // held) say about it to first order (blocked_ba.h).
+  struct PointSummary {
+    int point = -1;
+    Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  };
+  std::vector<PointSummary> point_summaries;
 
   // "" when every index is in range and every camera model is supported,
   // else the first problem found.
