@@ -5,6 +5,7 @@
 #include <chrono>
 #include <memory>
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 #include <tuple>
 
@@ -107,9 +108,13 @@ Block ExtractBlock(const BAProblem& full, const std::vector<BAProblem::Trajector
                    double cauchy_scale_px) {
   Block k;
   const size_t ni = full.images.size(), np = full.points.size();
+  // A point the block can place: seen twice by its images, or (coupled) once
+  // by them and at least once by the others' (a single view leaves its depth
+  // free and the block's system singular).
+  std::vector<int> own(np, 0), others(np, 0);
+  for (const auto& o : full.observations) ++(block_of_image[o.image] == b ? own : others)[o.point];
   std::vector<char> point_in(np, 0);
-  for (const auto& o : full.observations)
-    if (block_of_image[o.image] == b) point_in[o.point] = 1;
+  for (size_t p = 0; p < np; ++p) point_in[p] = own[p] >= 2 || (coupled && own[p] >= 1 && others[p] >= 1);
   std::vector<int> trajectory_index(full.trajectories.size(), -1), image_index(ni, -1), point_index(np, -1);
   for (size_t i = 0; i < ni; ++i)
     if (block_of_image[i] == b && full.images[i].trajectory >= 0) trajectory_index[full.images[i].trajectory] = 0;
@@ -353,6 +358,7 @@ struct Passes {
   int reference = -1;
   SplineBAOptions in_block;
   std::vector<Pose> alignments;
+  std::string log;  // the pass's blocks, for BlockedBAOptions::progress
 };
 
 // One pass: every block in turn (the first pass without the neighbours'
@@ -367,10 +373,13 @@ bool RunPass(const SplineBAOptions& options, int pass, Passes* s, BlockedBAResul
                            /*coupled=*/pass > 1, options.cauchy_scale_px);
     const SplineBAResult solved = RunSplineBA(s->in_block, &k.problem);
     if (!solved.usable) {
+      result->cancelled = solved.cancelled;
       result->message = "pass " + std::to_string(pass) + ", block " + std::to_string(b) + ": " + solved.message;
       return false;
     }
     WriteBack(k, solved, &s->work, &result->splines, &s->alignments);
+    s->log += " block " + std::to_string(b) + ": " + std::to_string(solved.iterations) + " iterations, " +
+              std::to_string(static_cast<int>(solved.seconds * 10) / 10.0).substr(0, 5) + " s;";
     result->block_observations[b] = static_cast<int>(k.problem.observations.size());
     result->block_images[b] = static_cast<int>(k.problem.images.size());
     result->block_summaries.push_back(static_cast<int>(k.problem.point_summaries.size()));
@@ -399,7 +408,7 @@ BlockedBAResult RunBlockedSplineBA(const SplineBAOptions& options, const Blocked
     return result;
   }
   Passes s{*problem, problem->trajectories, AssignBlocks(*problem, blocked.blocks), 0, ReferenceTrajectory(*problem),
-           options, std::vector<Pose>(problem->trajectories.size())};
+           options, std::vector<Pose>(problem->trajectories.size()), ""};
   s.blocks = s.block_of_image.empty() ? 0 : *std::max_element(s.block_of_image.begin(), s.block_of_image.end()) + 1;
   // A block starts near its optimum after the first passes: Ceres' relative
   // cost tolerance would stop it at once while the blocks still pull apart.
@@ -409,9 +418,16 @@ BlockedBAResult RunBlockedSplineBA(const SplineBAOptions& options, const Blocked
   if (s.work.start_alignments.size() == s.alignments.size()) s.alignments = s.work.start_alignments;
   for (int pass = 1; pass <= blocked.max_passes; ++pass) {
     const BAProblem before = s.work;
+    s.log.clear();
     if (!RunPass(options, pass, &s, &result)) return result;
     std::tie(result.last_change_m, result.last_change_deg) = LargestChange(before, s.work);
     result.passes = pass;
+    if (blocked.progress) {
+      char change[96];
+      std::snprintf(change, sizeof change, " largest camera change %.4f mm / %.5f deg", 1000 * result.last_change_m,
+                    result.last_change_deg);
+      blocked.progress("blocked BA pass " + std::to_string(pass) + ":" + s.log + change);
+    }
     if (result.last_change_m < blocked.tolerance_m && result.last_change_deg < blocked.tolerance_deg) {
       result.converged = true;
       break;

@@ -14,6 +14,7 @@
 #ifndef LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_BLOCKED_BA_H_
 #define LOCFORGE_PLUGINS_GT_SPLINE_BA_BA_BLOCKED_BA_H_
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -22,8 +23,9 @@
 namespace locforge::sfm {
 
 struct BlockedBAOptions {
-  // Blocks the trajectories are dealt into (at most one per trajectory).
-  int blocks = 2;
+  // Blocks the trajectories are dealt into (at most one per trajectory; 1:
+  // one block, the whole problem).
+  int blocks = 1;
   // Passes over all blocks (and the calibration) at most.
   int max_passes = 40;
   // A pass that moves every camera centre less than tolerance_m and every
@@ -31,6 +33,8 @@ struct BlockedBAOptions {
   // the 1 mm / 0.01 deg the blocked result must agree with the whole one).
   double tolerance_m = 1e-4;
   double tolerance_deg = 1e-3;
+  // Called after each pass with a one-line summary (e.g. the run's log); may be empty.
+  std::function<void(const std::string&)> progress;
 
   // "" or the first invalid field with the reason.
   std::string CheckMessage() const;
@@ -39,6 +43,7 @@ struct BlockedBAOptions {
 struct BlockedBAResult {
   bool usable = false;     // every block solve was usable (the problem was written back)
   bool converged = false;  // the last pass moved the cameras less than the tolerance
+  bool cancelled = false;  // options.cancelled stopped a block's solve
   int passes = 0;
   double last_change_m = 0, last_change_deg = 0;  // the last pass' largest camera change
   std::vector<int> block_images;                  // images adjusted by each block

@@ -64,7 +64,11 @@ TEST(BlockedBA, TwoSequencesSameAsWhole) {
   const SplineBAResult w = RunSplineBA(options, &whole);
   ASSERT_TRUE(w.usable) << w.message;
   BAProblem blocked = CalibratedStart();
-  const BlockedBAResult r = RunBlockedSplineBA(options, BlockedBAOptions(), &blocked);
+  BlockedBAOptions two;
+  two.blocks = 2;
+  int progress_lines = 0;
+  two.progress = [&](const std::string&) { ++progress_lines; };
+  const BlockedBAResult r = RunBlockedSplineBA(options, two, &blocked);
   ASSERT_TRUE(r.usable) << r.message;
   const auto [dm, ddeg] = Difference(whole, blocked);
   const SceneErrors ew = CompareToTruth(whole, Scene().truth), eb = CompareToTruth(blocked, Scene().truth);
@@ -76,6 +80,7 @@ TEST(BlockedBA, TwoSequencesSameAsWhole) {
               r.block_observations[1], r.block_summaries[0], r.block_summaries[1], w.num_observations, 1000 * dm, ddeg, 100 * ew.position_rms_m,
               ew.rotation_rms_deg, 100 * eb.position_rms_m, eb.rotation_rms_deg);
   EXPECT_TRUE(r.converged);
+  EXPECT_EQ(progress_lines, r.passes);  // one line per pass
   ASSERT_EQ(r.block_images.size(), 2u);
   EXPECT_EQ(r.block_images[0] + r.block_images[1], static_cast<int>(whole.images.size()));
   // A block holds its own observations only (its memory), the neighbours' as one summary per point.
