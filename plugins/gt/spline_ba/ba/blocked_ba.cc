@@ -56,6 +56,12 @@ struct Block {
   std::vector<int> image_of, point_of, trajectory_of;  // block index -> full index
 };
 
+// Whether an observation's point lies in front of its camera (RunSplineBA
+// leaves the others out, and so do the blocks when they count views).
+bool InFront(const BAProblem& full, const BAProblem::Observation& o) {
+  return (full.images[o.image].T_world_camera.Inverse() * full.points[o.point].xyz).z() > 0;
+}
+
 // What the observations of point p by images outside block b say about p,
 // their cost 0.5 sum rho(|r|^2) to second order (Gauss-Newton, the Cauchy
 // weight rho' at the current estimate) as 0.5 |S (x - x0) + c|^2 with
@@ -70,7 +76,7 @@ BAProblem::PointSummary Summarise(const BAProblem& full, const std::vector<const
   const ceres::CauchyLoss loss(cauchy_scale_px);
   for (const BAProblem::Observation* o : held) {
     const BAProblem::Image& im = full.images[o->image];
-    if (!((im.T_world_camera.Inverse() * summary.x0).z() > 0)) continue;  // as RunSplineBA: behind, not used
+    if (!InFront(full, *o)) continue;  // as RunSplineBA: behind, not used
     std::array<double, 7> pose;
     PoseToArray(im.T_world_camera, pose.data());
     const auto& params = full.sensors[im.sensor].camera.params;
@@ -108,11 +114,12 @@ Block ExtractBlock(const BAProblem& full, const std::vector<BAProblem::Trajector
                    double cauchy_scale_px) {
   Block k;
   const size_t ni = full.images.size(), np = full.points.size();
-  // A point the block can place: seen twice by its images, or (coupled) once
-  // by them and at least once by the others' (a single view leaves its depth
-  // free and the block's system singular).
+  // A point the block can place: seen (in front) twice by its images, or
+  // (coupled) once by them and at least once by the others' (a single view
+  // leaves its depth free and the block's system singular).
   std::vector<int> own(np, 0), others(np, 0);
-  for (const auto& o : full.observations) ++(block_of_image[o.image] == b ? own : others)[o.point];
+  for (const auto& o : full.observations)
+    if (InFront(full, o)) ++(block_of_image[o.image] == b ? own : others)[o.point];
   std::vector<char> point_in(np, 0);
   for (size_t p = 0; p < np; ++p) point_in[p] = own[p] >= 2 || (coupled && own[p] >= 1 && others[p] >= 1);
   std::vector<int> trajectory_index(full.trajectories.size(), -1), image_index(ni, -1), point_index(np, -1);
