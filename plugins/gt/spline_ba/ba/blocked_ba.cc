@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <memory>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <numeric>
 #include <tuple>
 
@@ -56,12 +56,6 @@ struct Block {
   std::vector<int> image_of, point_of, trajectory_of;  // block index -> full index
 };
 
-// Whether an observation's point lies in front of its camera (RunSplineBA
-// leaves the others out, and so do the blocks when they count views).
-bool InFront(const BAProblem& full, const BAProblem::Observation& o) {
-  return (full.images[o.image].T_world_camera.Inverse() * full.points[o.point].xyz).z() > 0;
-}
-
 // What the observations of point p by images outside block b say about p,
 // their cost 0.5 sum rho(|r|^2) to second order (Gauss-Newton, the Cauchy
 // weight rho' at the current estimate) as 0.5 |S (x - x0) + c|^2 with
@@ -104,12 +98,11 @@ BAProblem::PointSummary Summarise(const BAProblem& full, const std::vector<const
 }
 
 // Block b of `full`: its images (free, tied to their trajectories, whose
-// priors are the LiDAR samples `lidar`) and every point they observe (free);
+// priors are the LiDAR samples of `full`'s trajectories) and every point they observe (free);
 // with `coupled`, each point's observations by the other blocks' images as
 // one summary (above), those images held at their latest estimate.
 // The splines and alignments of the last pass start the block's trajectories.
-Block ExtractBlock(const BAProblem& full, const std::vector<BAProblem::Trajectory>& lidar,
-                   const std::vector<int>& block_of_image, int b, int reference_trajectory,
+Block ExtractBlock(const BAProblem& full, const std::vector<int>& block_of_image, int b, int reference_trajectory,
                    const std::vector<SE3Spline>& splines, const std::vector<Pose>& alignments, bool coupled,
                    double cauchy_scale_px) {
   Block k;
@@ -129,7 +122,7 @@ Block ExtractBlock(const BAProblem& full, const std::vector<BAProblem::Trajector
     if (trajectory_index[t] == 0) {
       trajectory_index[t] = static_cast<int>(k.trajectory_of.size());
       k.trajectory_of.push_back(static_cast<int>(t));
-      k.problem.trajectories.push_back(lidar[t]);
+      k.problem.trajectories.push_back(full.trajectories[t]);
       k.problem.start_splines.push_back(splines[t]);
       k.problem.start_alignments.push_back(alignments[t]);
     }
@@ -165,13 +158,13 @@ Block ExtractBlock(const BAProblem& full, const std::vector<BAProblem::Trajector
   return k;
 }
 
-// The block's adjusted images (not the held ones), points and trajectories into `full`.
+// The block's adjusted images, points, splines and alignments into the
+// passes' state (the trajectories' samples stay the LiDAR's: the anchors).
 void WriteBack(const Block& k, const SplineBAResult& solved, BAProblem* full, std::vector<SE3Spline>* splines,
                std::vector<Pose>* alignments) {
   for (size_t i = 0; i < k.image_of.size(); ++i) full->images[k.image_of[i]].T_world_camera = k.problem.images[i].T_world_camera;
   for (size_t p = 0; p < k.point_of.size(); ++p) full->points[k.point_of[p]] = k.problem.points[p];
   for (size_t t = 0; t < k.trajectory_of.size(); ++t) {
-    full->trajectories[k.trajectory_of[t]] = k.problem.trajectories[t];
     if (t < solved.splines.size()) (*splines)[k.trajectory_of[t]] = solved.splines[t];
     if (t < solved.trajectory_alignments.size()) (*alignments)[k.trajectory_of[t]] = solved.trajectory_alignments[t];
   }
@@ -319,15 +312,14 @@ void AddMovedKinematics(const SplineBAOptions& options, const BAProblem& work, c
 }
 
 // Solves for S (and the alignments) and applies S to the whole state.
-void CorrectCommonMotion(const SplineBAOptions& options, const std::vector<BAProblem::Trajectory>& lidar,
-                         int reference, std::vector<SE3Spline>* splines, std::vector<Pose>* alignments,
+void CorrectCommonMotion(const SplineBAOptions& options, int reference, std::vector<SE3Spline>* splines, std::vector<Pose>* alignments,
                          BAProblem* work) {
   if (!(options.trajectory_prior_sigma_rotation_rad > 0 && options.trajectory_prior_sigma_translation_m > 0)) return;
   Correction c;
   PoseToArray(Pose(), c.h.data());
   c.g.resize(splines->size());
   for (size_t t = 0; t < splines->size(); ++t) PoseToArray((*alignments)[t], c.g[t].data());
-  AddMovedPriors(options, lidar, *splines, reference, &c);
+  AddMovedPriors(options, work->trajectories, *splines, reference, &c);
   if (c.problem.NumResidualBlocks() == 0) return;
   AddMovedKinematics(options, *work, *splines, &c);
   c.problem.SetManifold(c.h.data(),
@@ -355,11 +347,10 @@ int ReferenceTrajectory(const BAProblem& problem) {
   return reference;
 }
 
-// What the passes carry: the state, the LiDAR samples (the priors' anchors,
-// which RunSplineBA overwrites with its splines) and the blocks.
+// What the passes carry: the state (its trajectories keep the LiDAR samples,
+// the priors' anchors, until the end) and the blocks.
 struct Passes {
   BAProblem work;
-  std::vector<BAProblem::Trajectory> lidar;
   std::vector<int> block_of_image;
   int blocks = 0;
   int reference = -1;
@@ -374,9 +365,9 @@ struct Passes {
 bool RunPass(const SplineBAOptions& options, int pass, Passes* s, BlockedBAResult* result) {
   result->block_images.assign(s->blocks, 0);
   result->block_observations.assign(s->blocks, 0);
-  result->block_summaries.clear();
+  result->block_summaries.assign(s->blocks, 0);
   for (int b = 0; b < s->blocks; ++b) {
-    Block k = ExtractBlock(s->work, s->lidar, s->block_of_image, b, s->reference, result->splines, s->alignments,
+    Block k = ExtractBlock(s->work, s->block_of_image, b, s->reference, result->splines, s->alignments,
                            /*coupled=*/pass > 1, options.cauchy_scale_px);
     const SplineBAResult solved = RunSplineBA(s->in_block, &k.problem);
     if (!solved.usable) {
@@ -385,13 +376,14 @@ bool RunPass(const SplineBAOptions& options, int pass, Passes* s, BlockedBAResul
       return false;
     }
     WriteBack(k, solved, &s->work, &result->splines, &s->alignments);
-    s->log += " block " + std::to_string(b) + ": " + std::to_string(solved.iterations) + " iterations, " +
-              std::to_string(static_cast<int>(solved.seconds * 10) / 10.0).substr(0, 5) + " s;";
+    char line[64];
+    std::snprintf(line, sizeof line, " block %d: %d iterations, %.1f s;", b, solved.iterations, solved.seconds);
+    s->log += line;
     result->block_observations[b] = static_cast<int>(k.problem.observations.size());
     result->block_images[b] = static_cast<int>(k.problem.images.size());
-    result->block_summaries.push_back(static_cast<int>(k.problem.point_summaries.size()));
+    result->block_summaries[b] = static_cast<int>(k.problem.point_summaries.size());
   }
-  if (pass > 1) CorrectCommonMotion(options, s->lidar, s->reference, &result->splines, &s->alignments, &s->work);
+  if (pass > 1) CorrectCommonMotion(options, s->reference, &result->splines, &s->alignments, &s->work);
   return true;
 }
 
@@ -414,7 +406,7 @@ BlockedBAResult RunBlockedSplineBA(const SplineBAOptions& options, const Blocked
     result.message = "refused: " + why;
     return result;
   }
-  Passes s{*problem, problem->trajectories, AssignBlocks(*problem, blocked.blocks), 0, ReferenceTrajectory(*problem),
+  Passes s{*problem, AssignBlocks(*problem, blocked.blocks), 0, ReferenceTrajectory(*problem),
            options, std::vector<Pose>(problem->trajectories.size()), ""};
   s.blocks = s.block_of_image.empty() ? 0 : *std::max_element(s.block_of_image.begin(), s.block_of_image.end()) + 1;
   // A block starts near its optimum after the first passes: Ceres' relative
@@ -440,11 +432,11 @@ BlockedBAResult RunBlockedSplineBA(const SplineBAOptions& options, const Blocked
       break;
     }
   }
-  s.work.trajectories = s.lidar;  // as RunSplineBA: the trajectories become the adjusted splines' samples
-  for (size_t t = 0; t < s.lidar.size(); ++t)
+  // As RunSplineBA: the trajectories become the adjusted splines' samples.
+  for (size_t t = 0; t < s.work.trajectories.size(); ++t)
     if (!result.splines[t].control.empty())
-      for (size_t i = 0; i < s.lidar[t].times_s.size(); ++i)
-        s.work.trajectories[t].T_world_body[i] = result.splines[t].Evaluate(s.lidar[t].times_s[i]);
+      for (size_t i = 0; i < s.work.trajectories[t].times_s.size(); ++i)
+        s.work.trajectories[t].T_world_body[i] = result.splines[t].Evaluate(s.work.trajectories[t].times_s[i]);
   *problem = std::move(s.work);
   result.trajectory_alignments = s.alignments;
   result.usable = true;

@@ -15,27 +15,17 @@ namespace locforge::sfm {
 namespace {
 
 const SyntheticScene& Scene() {
-  static const SyntheticScene scene = [] {
-    SyntheticOptions o;
-    o.clock_offset_sigma_s = 0.003;
-    return MakeSyntheticScene(o);
-  }();
+  static const SyntheticScene scene = MakeSyntheticScene(TestSceneOptions());
   return scene;
 }
 
-// The settings of spline_ba_test.cc (sized for this scene), the calibration
-// held: what a blocked pass sees after the calibrated rounds.
+// The synthetic scene's settings with the sequences aligned (the stage's
+// default) and the calibration held: what a blocked pass sees after the
+// calibrated rounds.
 SplineBAOptions CalibrationHeld() {
-  SplineBAOptions options;
+  SplineBAOptions options = SyntheticSceneBAOptions();
   options.num_threads = 2;
-  options.knot_spacing_s = 0.1;
-  options.prior_sigma_rotation_rad = 0.002;
-  options.prior_sigma_translation_m = 0.01;
-  options.trajectory_prior_sigma_rotation_rad = 0.02;
-  options.trajectory_prior_sigma_translation_m = 0.05;
-  options.alignment_sigma_rotation_rad = 0.05;
-  options.cauchy_scale_px = 1.0;
-  options.max_iterations = 100;
+  options.align_trajectories = true;
   options.calibrate_intrinsics = options.calibrate_rotations = options.estimate_time_offsets = false;
   return options;
 }

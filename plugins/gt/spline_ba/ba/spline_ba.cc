@@ -93,15 +93,15 @@ std::string BAProblem::Validate() const {
   return "";
 }
 
-namespace {
-
 bool InFront(const BAProblem& problem, const BAProblem::Observation& o, Eigen::Vector2d* xy) {
   const BAProblem::Image& im = problem.images[o.image];
   const Eigen::Vector3d p = im.T_world_camera.Inverse() * problem.points[o.point].xyz;
   if (!(p.z() > 0)) return false;
-  *xy = problem.sensors[im.sensor].camera.Project(p);
+  if (xy) *xy = problem.sensors[im.sensor].camera.Project(p);
   return true;
 }
+
+namespace {
 
 // The intrinsics of a camera restricted to a linear subspace, x = x0 + B d:
 // fx and fy moving together (fix_aspect_ratio keeps fy / fx at its initial
@@ -640,14 +640,15 @@ class CancellationCallback : public ceres::IterationCallback {
   const std::function<bool()>& cancelled_;
 };
 
-// Builds the problem: residuals (1) to (3) and the kinematics, then the
-// manifolds and what is held; false when no observation is in front of its camera.
 // The point summaries of held neighbours (blocked_ba.h), as residuals.
 void AddPointSummaries(Assembly& a) {
   for (const auto& summary : a.problem.point_summaries)
     a.ceres.AddResidualBlock(PointSummaryError::Create(summary.x0, summary.S, summary.c), nullptr,
                              a.x.points[summary.point].data());
 }
+
+// Builds the problem: residuals (1) to (3) and the kinematics, then the
+// manifolds and what is held; false when no observation is in front of its camera.
 
 bool BuildProblem(Assembly& a, bool splines) {
   AddReprojectionErrors(a);

@@ -253,6 +253,10 @@ struct SplineBAResult {
 // options or problem -> result.message says why and nothing changes.
 SplineBAResult RunSplineBA(const SplineBAOptions& options, BAProblem* problem);
 
+// Whether observation o's point lies in front of its camera (RunSplineBA
+// leaves the others out); *xy (optional) receives its projection.
+bool InFront(const BAProblem& problem, const BAProblem::Observation& o, Eigen::Vector2d* xy = nullptr);
+
 // Mean reprojection error (pixels) over the observations in front of their
 // camera; *count (optional) receives their number.
 double MeanReprojectionError(const BAProblem& problem, int* count = nullptr);
